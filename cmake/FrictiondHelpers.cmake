@@ -1,0 +1,45 @@
+# frictiond_library(NAME <name> [PUBLIC_LIBS ...] [PRIVATE_LIBS ...])
+# One folder, one library: sources are src/*.cc, public headers are
+# include/frictiond/<name>/*.h, unit tests are test/*_test.cc.
+function(frictiond_library)
+  cmake_parse_arguments(ARG "" "NAME" "PUBLIC_LIBS;PRIVATE_LIBS;TEST_LIBS" ${ARGN})
+  file(GLOB _srcs CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/src/*.cc)
+  add_library(frictiond_${ARG_NAME} ${_srcs})
+  add_library(frictiond::${ARG_NAME} ALIAS frictiond_${ARG_NAME})
+  set_target_properties(frictiond_${ARG_NAME} PROPERTIES EXPORT_NAME ${ARG_NAME})
+  target_compile_features(frictiond_${ARG_NAME} PUBLIC cxx_std_17)
+  target_include_directories(frictiond_${ARG_NAME} PUBLIC
+    $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include>
+    $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
+  target_link_libraries(frictiond_${ARG_NAME} PUBLIC ${ARG_PUBLIC_LIBS} PRIVATE ${ARG_PRIVATE_LIBS})
+  frictiond_warnings(frictiond_${ARG_NAME})
+  if(FRICTIOND_BUILD_TESTS)
+    file(GLOB _tests CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/test/*_test.cc)
+    foreach(_t ${_tests})
+      get_filename_component(_n ${_t} NAME_WE)
+      frictiond_add_test(${_n} SOURCES ${_t} LIBS frictiond::${ARG_NAME} ${ARG_TEST_LIBS})
+    endforeach()
+  endif()
+endfunction()
+
+function(frictiond_warnings target)
+  if(CMAKE_CXX_COMPILER_ID MATCHES "GNU|Clang")
+    target_compile_options(${target} PRIVATE -Wall -Wextra -Wpedantic)
+  endif()
+endfunction()
+
+# frictiond_add_test(<name> SOURCES ... LIBS ... [LABELS ...])
+function(frictiond_add_test name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;LIBS;LABELS" ${ARGN})
+  add_executable(${name} ${ARG_SOURCES})
+  set_target_properties(${name} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/tests)
+  target_link_libraries(${name} PRIVATE ${ARG_LIBS} frictiond_testing GTest::gtest GTest::gtest_main)
+  frictiond_warnings(${name})
+  add_test(NAME ${name} COMMAND ${name})
+  set_tests_properties(${name} PROPERTIES
+    ENVIRONMENT "FRICTIOND_SOURCE_DIR=${PROJECT_SOURCE_DIR};FRICTIOND_BIN_DIR=${CMAKE_BINARY_DIR}/bin"
+    TIMEOUT 600)
+  if(ARG_LABELS)
+    set_tests_properties(${name} PROPERTIES LABELS "${ARG_LABELS}")
+  endif()
+endfunction()

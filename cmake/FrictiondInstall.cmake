@@ -1,0 +1,28 @@
+# Install proto, estimators and client with an exported CMake package so that
+# an outside project can do:
+#   find_package(frictiond CONFIG REQUIRED)
+#   target_link_libraries(robot_app PRIVATE frictiond::client)
+include(CMakePackageConfigHelpers)
+
+install(TARGETS frictiond_estimators frictiond_proto frictiond_client
+  EXPORT frictiondTargets
+  ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+  LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
+  RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+foreach(_dir estimators proto client)
+  install(DIRECTORY ${PROJECT_SOURCE_DIR}/${_dir}/include/frictiond
+    DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+endforeach()
+if(TARGET frictiond_lcmtypes)
+  install(DIRECTORY ${CMAKE_BINARY_DIR}/lcmtypes/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+endif()
+install(TARGETS frictiond friction RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+
+set(_cfgdir ${CMAKE_INSTALL_LIBDIR}/cmake/frictiond)
+install(EXPORT frictiondTargets NAMESPACE frictiond:: DESTINATION ${_cfgdir})
+configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/frictiondConfig.cmake.in
+  ${CMAKE_BINARY_DIR}/frictiondConfig.cmake INSTALL_DESTINATION ${_cfgdir})
+write_basic_package_version_file(${CMAKE_BINARY_DIR}/frictiondConfigVersion.cmake
+  VERSION ${PROJECT_VERSION} COMPATIBILITY SameMajorVersion)
+install(FILES ${CMAKE_BINARY_DIR}/frictiondConfig.cmake
+  ${CMAKE_BINARY_DIR}/frictiondConfigVersion.cmake DESTINATION ${_cfgdir})
