@@ -1,0 +1,230 @@
+#include "frictiond/estimators/preprocessing.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace frictiond {
+
+SlipLabelOptions SlipLabelOptions::Paper000() {
+  SlipLabelOptions o;
+  o.peak_mm_s = 10.0;
+  o.floor_mm_s = 5.0;
+  o.median_window_s = 0.08;
+  o.max_fn_n = 5.0;
+  o.max_v_mm_s = 150.0;
+  return o;
+}
+
+bool SlipLabelOptions::IsValid(std::string* why) const {
+  auto fail = [&](const std::string& s) {
+    if (why) *why = s;
+    return false;
+  };
+  if (!(peak_mm_s > 0) || !std::isfinite(peak_mm_s))
+    return fail("slip_peak_mm_s = " + std::to_string(peak_mm_s) +
+                " (must be finite and > 0)");
+  if (!(floor_mm_s >= 0) || !(floor_mm_s <= peak_mm_s))
+    return fail("slip_floor_mm_s = " + std::to_string(floor_mm_s) +
+                " (must be in [0, slip_peak_mm_s])");
+  if (!(median_window_s >= 0) || !(median_window_s <= 10))
+    return fail("median_window_s = " + std::to_string(median_window_s) +
+                " (must be in [0, 10])");
+  if (!(max_fn_n > 0))
+    return fail("max_fn_n = " + std::to_string(max_fn_n) + " (must be > 0)");
+  if (!(max_v_mm_s > 0))
+    return fail("max_v_mm_s = " + std::to_string(max_v_mm_s) +
+                " (must be > 0)");
+  if (!(gap_factor > 1))
+    return fail("gap_factor = " + std::to_string(gap_factor) +
+                " (must be > 1)");
+  return true;
+}
+
+std::vector<double> MedianFilter(const std::vector<double>& x, int kernel) {
+  if (kernel <= 1 || x.size() < 3) return x;
+  if (kernel % 2 == 0) ++kernel;
+  const int half = kernel / 2;
+  const int n = static_cast<int>(x.size());
+  std::vector<double> out(x.size());
+  // Sorted sliding window [lo, hi]: each step removes the sample leaving and
+  // inserts the one entering (O(kernel) memmove, no per-sample selection).
+  std::vector<double> win;
+  win.reserve(kernel + 1);
+  int lo = 0, hi = -1;
+  auto insert = [&win](double v) {
+    win.insert(std::upper_bound(win.begin(), win.end(), v), v);
+  };
+  auto erase = [&win](double v) {
+    win.erase(std::lower_bound(win.begin(), win.end(), v));
+  };
+  for (int i = 0; i < n; ++i) {
+    const int want_lo = std::max(0, i - half);
+    const int want_hi = std::min(n - 1, i + half);
+    while (hi < want_hi) insert(x[++hi]);
+    while (lo < want_lo) erase(x[lo++]);
+    out[i] = win[win.size() / 2];
+  }
+  return out;
+}
+
+double CalcMedianDt(const std::vector<double>& t_s) {
+  std::vector<double> dt;
+  dt.reserve(t_s.size());
+  for (std::size_t i = 1; i < t_s.size(); ++i) {
+    const double d = t_s[i] - t_s[i - 1];
+    if (d > 0) dt.push_back(d);
+  }
+  if (dt.empty()) return 0.0;
+  auto mid = dt.begin() + dt.size() / 2;
+  std::nth_element(dt.begin(), mid, dt.end());
+  return *mid;
+}
+
+namespace {
+
+// True where the step from i-1 to i is a gap (unrecorded rest).
+std::vector<bool> CalcGaps(const std::vector<double>& t_s, double gap_factor) {
+  std::vector<bool> gap(t_s.size(), false);
+  const double dt = CalcMedianDt(t_s);
+  if (dt <= 0) return gap;
+  for (std::size_t i = 1; i < t_s.size(); ++i)
+    gap[i] = (t_s[i] - t_s[i - 1]) > gap_factor * dt;
+  return gap;
+}
+
+}  // namespace
+
+std::vector<int> LabelSlip(const StrokeData& data,
+                           const SlipLabelOptions& options) {
+  std::string why;
+  if (!options.IsValid(&why)) throw std::invalid_argument(why);
+  const std::size_t n = data.size();
+  std::vector<int> slip(n, 0);
+  if (n == 0) return slip;
+  const double dt = CalcMedianDt(data.t_s);
+  int kernel = 1;
+  if (dt > 0 && options.median_window_s > 0)
+    kernel = static_cast<int>(std::lround(options.median_window_s / dt));
+  const std::vector<double> v = MedianFilter(data.v_mm_s, kernel);
+  const std::vector<bool> gap = CalcGaps(data.t_s, options.gap_factor);
+  // Episodes: maximal runs with v > floor, not crossing gaps (paper II-C).
+  std::size_t i = 0;
+  while (i < n) {
+    if (!(v[i] > options.floor_mm_s)) {
+      ++i;
+      continue;
+    }
+    std::size_t j = i;
+    double peak = v[i];
+    while (j + 1 < n && v[j + 1] > options.floor_mm_s && !gap[j + 1]) {
+      ++j;
+      peak = std::max(peak, v[j]);
+    }
+    if (peak > options.peak_mm_s) {
+      for (std::size_t k = i; k <= j; ++k) slip[k] = 1;
+    }
+    i = j + 1;
+  }
+  return slip;
+}
+
+std::vector<int> SegmentStrokes(const StrokeData& data,
+                                const std::vector<int>& slip,
+                                double gap_factor) {
+  const std::size_t n = data.size();
+  std::vector<int> stroke(n, 0);
+  const std::vector<bool> gap = CalcGaps(data.t_s, gap_factor);
+  int id = 0;
+  bool seen_slip = false;  // the current stroke already had a slip episode
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i > 0) {
+      const bool slip_ended = slip[i - 1] == 1 && slip[i] == 0;
+      if (gap[i]) {
+        // A gap ends the stroke, unless it had no slip yet (the rest goes on).
+        if (seen_slip) ++id;
+        seen_slip = false;
+      } else if (slip_ended) {
+        ++id;  // rest after a slip episode belongs to the next stroke
+        seen_slip = false;
+      }
+    }
+    if (slip[i]) seen_slip = true;
+    stroke[i] = id;
+  }
+  return stroke;
+}
+
+void EnsureLabels(StrokeData* data, const SlipLabelOptions& options) {
+  if (data->slip.size() != data->size()) data->slip = LabelSlip(*data, options);
+  if (data->stroke.size() != data->size())
+    data->stroke = SegmentStrokes(*data, data->slip, options.gap_factor);
+}
+
+std::vector<bool> CalcFitMask(const StrokeData& data,
+                              const SlipLabelOptions& options) {
+  std::vector<bool> mask(data.size(), false);
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    mask[i] = data.slip[i] == 1 && data.fn_n[i] < options.max_fn_n &&
+              data.v_mm_s[i] < options.max_v_mm_s;
+  }
+  return mask;
+}
+
+const std::vector<std::string>& DerivedFeatureNames() {
+  static const std::vector<std::string> kNames = {
+      "distance_mm", "dwell_s", "time_s", "accel_mm_s2", "fn_rate_n_s"};
+  return kNames;
+}
+
+void AddDerivedFeatures(StrokeData* data, double gap_factor) {
+  const std::size_t n = data->size();
+  const auto& t = data->t_s;
+  const auto& v = data->v_mm_s;
+  const auto& fn = data->fn_n;
+  const std::vector<bool> gap = CalcGaps(t, gap_factor);
+  std::vector<double> distance(n, 0.0), dwell(n, 0.0), time(n, 0.0),
+      accel(n, 0.0), fn_rate(n, 0.0);
+  const std::vector<int>& slip = data->slip;
+  const bool have_slip = slip.size() == n;
+  double rest_start = n ? t[0] : 0.0;
+  double current_dwell = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    time[i] = t[i] - t[0];
+    if (i > 0)
+      distance[i] =
+          distance[i - 1] +
+          (gap[i] ? 0.0 : 0.5 * (v[i] + v[i - 1]) * (t[i] - t[i - 1]));
+    const bool s = have_slip && slip[i] == 1;
+    const bool prev_s = have_slip && i > 0 && slip[i - 1] == 1;
+    if (s && !prev_s) current_dwell = t[i] - rest_start;  // episode begins
+    if (!s && prev_s) rest_start = t[i];                  // rest begins
+    dwell[i] = s ? current_dwell : t[i] - rest_start;
+    // Derivatives: central, one-sided across gaps and at ends.
+    const bool has_prev = i > 0 && !gap[i];
+    const bool has_next = i + 1 < n && !gap[i + 1];
+    std::size_t a = has_prev ? i - 1 : i;
+    std::size_t b = has_next ? i + 1 : i;
+    const double dt = t[b] - t[a];
+    if (dt > 0) {
+      accel[i] = (v[b] - v[a]) / dt;
+      fn_rate[i] = (fn[b] - fn[a]) / dt;
+    }
+  }
+  std::vector<std::vector<double>> cols = {std::move(distance),
+                                           std::move(dwell),
+                                           std::move(time),
+                                           std::move(accel),
+                                           std::move(fn_rate)};
+  const auto& names = DerivedFeatureNames();
+  for (std::size_t k = 0; k < names.size(); ++k) {
+    if (auto j = data->FindCovariate(names[k])) {
+      data->covariates[*j] = std::move(cols[k]);
+    } else {
+      data->covariate_names.push_back(names[k]);
+      data->covariates.push_back(std::move(cols[k]));
+    }
+  }
+}
+
+}  // namespace frictiond

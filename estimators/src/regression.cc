@@ -1,0 +1,401 @@
+#include "frictiond/estimators/regression.h"
+
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <stdexcept>
+
+#include "frictiond/estimators/stats.h"
+
+namespace frictiond {
+
+namespace {
+
+std::string Fmt(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", x);
+  return buf;
+}
+
+bool EndsWith(std::string_view s, std::string_view suffix) {
+  return s.size() >= suffix.size() &&
+         s.substr(s.size() - suffix.size()) == suffix;
+}
+
+double ParseNumber(std::string_view s, std::string_view whole) {
+  double x = 0;
+  auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), x);
+  if (ec != std::errc() || p != s.data() + s.size() || !std::isfinite(x)) {
+    throw std::invalid_argument("term '" + std::string(whole) + "': '" +
+                                std::string(s) + "' is not a number");
+  }
+  return x;
+}
+
+}  // namespace
+
+const char* ToString(FitStatus s) {
+  switch (s) {
+    case FitStatus::kOk:
+      return "ok";
+    case FitStatus::kPartial:
+      return "partial";
+    case FitStatus::kTooFewSamples:
+      return "too_few_samples";
+    case FitStatus::kFailed:
+      return "failed";
+  }
+  return "unknown";
+}
+
+std::string Term::Name() const {
+  switch (kind) {
+    case TermKind::kIntercept:
+      return "intercept";
+    case TermKind::kLinear:
+      return input;
+    case TermKind::kPower:
+      return input + "^" + Fmt(a);
+    case TermKind::kLog:
+      return "log(" + input + ")";
+    case TermKind::kSin:
+      return "sin(" + input + ")";
+    case TermKind::kCos:
+      return "cos(" + input + ")";
+    case TermKind::kExpDecay:
+      return "exp(-" + input + "/" + Fmt(a) + ")";
+    case TermKind::kWindow:
+      return "in(" + input + "," + Fmt(a) + "," + Fmt(b) + ")";
+    case TermKind::kHinge:
+      return "hinge(" + input + "," + Fmt(a) + ")";
+    case TermKind::kSinDeg:
+      return "sind(" + input + ")";
+    case TermKind::kCosDeg:
+      return "cosd(" + input + ")";
+    case TermKind::kOnsetDecay:
+      return "onset(" + input + "," + Fmt(a) +
+             (b == 1.0 ? std::string() : "," + Fmt(b)) + ")";
+  }
+  return "?";
+}
+
+Term Term::Parse(std::string_view name) {
+  auto bad = [&](const std::string& why) {
+    return std::invalid_argument("term '" + std::string(name) + "': " + why);
+  };
+  if (name.empty()) throw bad("empty name");
+  if (name == "intercept") return Intercept();
+  auto inner = [&](std::string_view prefix) -> std::string_view {
+    if (name.substr(0, prefix.size()) != prefix || name.back() != ')')
+      return {};
+    return name.substr(prefix.size(), name.size() - prefix.size() - 1);
+  };
+  Term t;
+  if (auto s = inner("log("); !s.empty()) {
+    t.kind = TermKind::kLog;
+    t.input = std::string(s);
+  } else if (auto s2 = inner("sin("); !s2.empty()) {
+    t.kind = TermKind::kSin;
+    t.input = std::string(s2);
+  } else if (auto s3 = inner("cos("); !s3.empty()) {
+    t.kind = TermKind::kCos;
+    t.input = std::string(s3);
+  } else if (auto s4 = inner("exp(-"); !s4.empty()) {
+    const auto slash = s4.rfind('/');
+    if (slash == std::string_view::npos) throw bad("expected exp(-x/a)");
+    t.kind = TermKind::kExpDecay;
+    t.input = std::string(s4.substr(0, slash));
+    t.a = ParseNumber(s4.substr(slash + 1), name);
+    if (!(t.a > 0)) throw bad("decay length must be > 0");
+  } else if (auto s5 = inner("in("); !s5.empty()) {
+    const auto c1 = s5.find(',');
+    const auto c2 = s5.rfind(',');
+    if (c1 == std::string_view::npos || c1 == c2)
+      throw bad("expected in(x,a,b)");
+    t.kind = TermKind::kWindow;
+    t.input = std::string(s5.substr(0, c1));
+    t.a = ParseNumber(s5.substr(c1 + 1, c2 - c1 - 1), name);
+    t.b = ParseNumber(s5.substr(c2 + 1), name);
+    if (!(t.a < t.b)) throw bad("window start must be below its end");
+  } else if (auto s6 = inner("hinge("); !s6.empty()) {
+    const auto comma = s6.rfind(',');
+    if (comma == std::string_view::npos) throw bad("expected hinge(x,a)");
+    t.kind = TermKind::kHinge;
+    t.input = std::string(s6.substr(0, comma));
+    t.a = ParseNumber(s6.substr(comma + 1), name);
+  } else if (auto s7 = inner("sind("); !s7.empty()) {
+    t.kind = TermKind::kSinDeg;
+    t.input = std::string(s7);
+  } else if (auto s8 = inner("cosd("); !s8.empty()) {
+    t.kind = TermKind::kCosDeg;
+    t.input = std::string(s8);
+  } else if (auto s9 = inner("onset("); !s9.empty()) {
+    const auto c1 = s9.find(',');
+    if (c1 == std::string_view::npos)
+      throw bad("expected onset(x,a) or onset(x,a,b)");
+    const auto c2 = s9.find(',', c1 + 1);
+    t.kind = TermKind::kOnsetDecay;
+    t.input = std::string(s9.substr(0, c1));
+    if (c2 == std::string_view::npos) {
+      t.a = ParseNumber(s9.substr(c1 + 1), name);
+      t.b = 1.0;
+    } else {
+      t.a = ParseNumber(s9.substr(c1 + 1, c2 - c1 - 1), name);
+      t.b = ParseNumber(s9.substr(c2 + 1), name);
+    }
+    if (!(t.a > 0)) throw bad("decay time must be > 0");
+  } else if (const auto caret = name.find('^');
+             caret != std::string_view::npos) {
+    t.kind = TermKind::kPower;
+    t.input = std::string(name.substr(0, caret));
+    t.a = ParseNumber(name.substr(caret + 1), name);
+  } else {
+    t.kind = TermKind::kLinear;
+    t.input = std::string(name);
+  }
+  if (t.input.empty()) throw bad("no input column");
+  for (char c : t.input) {
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_'))
+      throw bad("input '" + t.input + "' is not a column name");
+  }
+  return t;
+}
+
+double Term::Eval(double x) const {
+  switch (kind) {
+    case TermKind::kIntercept:
+      return 1.0;
+    case TermKind::kLinear:
+      return x;
+    case TermKind::kPower:
+      return std::pow(x, a);
+    case TermKind::kLog:
+      return std::log(x);
+    case TermKind::kSin:
+      return std::sin(EndsWith(input, "_deg") ? x * M_PI / 180.0 : x);
+    case TermKind::kCos:
+      return std::cos(EndsWith(input, "_deg") ? x * M_PI / 180.0 : x);
+    case TermKind::kExpDecay:
+      return std::exp(-x / a);
+    case TermKind::kWindow:
+      return (x >= a && x < b) ? 1.0 : 0.0;
+    case TermKind::kHinge:
+      return x > a ? x - a : 0.0;
+    case TermKind::kSinDeg:
+      return std::sin(x * M_PI / 180.0);
+    case TermKind::kCosDeg:
+      return std::cos(x * M_PI / 180.0);
+    case TermKind::kOnsetDecay:
+      return 0.0;  // steady sliding: the transient has decayed
+  }
+  return 0.0;
+}
+
+double Term::Eval(double x, double since_onset_s) const {
+  if (kind != TermKind::kOnsetDecay) return Eval(x);
+  if (!(since_onset_s < std::numeric_limits<double>::infinity())) return 0.0;
+  const double weight = b == 1.0 ? x : (b == 0.0 ? 1.0 : std::pow(x, b));
+  return weight * std::exp(-std::max(0.0, since_onset_s) / a);
+}
+
+std::vector<double> CalcTimeSinceSlipOnset(const StrokeData& data) {
+  const std::size_t n = data.size();
+  std::vector<double> s(n, std::numeric_limits<double>::infinity());
+  if (data.slip.size() != n) return s;
+  const bool have_stroke = data.stroke.size() == n;
+  double onset_t = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (data.slip[i] != 1) continue;
+    const bool starts = i == 0 || data.slip[i - 1] != 1 ||
+                        (have_stroke && data.stroke[i] != data.stroke[i - 1]);
+    if (starts) onset_t = data.t_s[i];
+    s[i] = data.t_s[i] - onset_t;
+  }
+  return s;
+}
+
+Eigen::MatrixXd BuildDesign(const StrokeData& data,
+                            const std::vector<Term>& terms,
+                            const std::vector<std::size_t>& rows) {
+  Eigen::MatrixXd X(rows.size(), terms.size());
+  std::vector<double> since_onset;
+  for (const Term& term : terms) {
+    if (term.NeedsSlipOnset()) {
+      since_onset = CalcTimeSinceSlipOnset(data);
+      break;
+    }
+  }
+  for (std::size_t k = 0; k < terms.size(); ++k) {
+    const Term& term = terms[k];
+    if (term.kind == TermKind::kIntercept) {
+      X.col(k).setOnes();
+      continue;
+    }
+    const std::vector<double>* col = data.Column(term.input);
+    if (!col)
+      throw std::invalid_argument("term '" + term.Name() + "': no column '" +
+                                  term.input + "' in the data");
+    if (term.NeedsSlipOnset()) {
+      for (std::size_t r = 0; r < rows.size(); ++r)
+        X(r, k) = term.Eval((*col)[rows[r]], since_onset[rows[r]]);
+      continue;
+    }
+    for (std::size_t r = 0; r < rows.size(); ++r)
+      X(r, k) = term.Eval((*col)[rows[r]]);
+  }
+  return X;
+}
+
+OlsResult FitOls(const Eigen::Ref<const Eigen::MatrixXd>& X,
+                 const Eigen::Ref<const Eigen::VectorXd>& y) {
+  OlsResult r;
+  const int n = static_cast<int>(X.rows());
+  const int p = static_cast<int>(X.cols());
+  r.samples = n;
+  r.beta = Eigen::VectorXd::Zero(p);
+  r.std_err = Eigen::VectorXd::Zero(p);
+  r.P_beta = Eigen::MatrixXd::Zero(p, p);
+  r.identified.assign(p, false);
+  if (n < p + 2 || n < 3) {
+    r.status = FitStatus::kTooFewSamples;
+    r.why = std::to_string(n) + " samples for " + std::to_string(p) +
+            " terms (need at least terms + 2)";
+    return r;
+  }
+  if (!X.allFinite() || !y.allFinite()) {
+    r.status = FitStatus::kFailed;
+    r.why = "non-finite value in the design matrix or the response";
+    return r;
+  }
+  // Detect the intercept column and centre/scale the others.
+  int intercept = -1;
+  for (int k = 0; k < p; ++k) {
+    if ((X.col(k).array() == 1.0).all()) {
+      intercept = k;
+      break;
+    }
+  }
+  const Eigen::RowVectorXd mean = X.colwise().mean();
+  Eigen::VectorXd scale(p);
+  for (int k = 0; k < p; ++k) {
+    if (k == intercept) {
+      scale(k) = 1.0;
+      continue;
+    }
+    const double c = intercept >= 0 ? mean(k) : 0.0;
+    const double ss = (X.col(k).array() - c).square().sum() / n;
+    scale(k) = std::sqrt(ss);
+  }
+  // Gram matrix of the standardised non-intercept columns (one pass over X).
+  std::vector<int> cols;
+  for (int k = 0; k < p; ++k) {
+    if (k == intercept) continue;
+    const double rel = scale(k) / (std::fabs(mean(k)) + scale(k) + 1e-300);
+    if (scale(k) > 0 && rel > 1e-12) cols.push_back(k);
+  }
+  const int q = static_cast<int>(cols.size());
+  Eigen::MatrixXd Z(n, q);
+  for (int j = 0; j < q; ++j) {
+    const int k = cols[j];
+    const double c = intercept >= 0 ? mean(k) : 0.0;
+    Z.col(j) = (X.col(k).array() - c) / scale(k);
+  }
+  const double ybar = intercept >= 0 ? y.mean() : 0.0;
+  const Eigen::VectorXd yc = y.array() - ybar;
+  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(q, q);
+  // With no usable column (intercept-only fit) Z has no storage, and Eigen's
+  // rank update would bind a reference through its null data pointer.
+  if (q > 0) {
+    G.selfadjointView<Eigen::Lower>().rankUpdate(Z.transpose());
+    G = G.selfadjointView<Eigen::Lower>();
+  }
+  Eigen::VectorXd g = Z.transpose() * yc;
+  // Rank check: pivoted QR of the Gram matrix (well scaled: diag = n).
+  std::vector<int> keep;
+  if (q > 0) {
+    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(G / n);
+    qr.setThreshold(1e-10);
+    const int rank = static_cast<int>(qr.rank());
+    for (int j = 0; j < rank; ++j)
+      keep.push_back(qr.colsPermutation().indices()(j));
+    std::sort(keep.begin(), keep.end());
+  }
+  const int m = static_cast<int>(keep.size());
+  Eigen::MatrixXd Gk(m, m);
+  Eigen::VectorXd gk(m);
+  for (int a = 0; a < m; ++a) {
+    gk(a) = g(keep[a]);
+    for (int b = 0; b < m; ++b) Gk(a, b) = G(keep[a], keep[b]);
+  }
+  Eigen::LDLT<Eigen::MatrixXd> ldlt(Gk);
+  if (m > 0 && ldlt.info() != Eigen::Success) {
+    r.status = FitStatus::kFailed;
+    r.why = "normal equations could not be factorised";
+    return r;
+  }
+  const Eigen::VectorXd bz =
+      m > 0 ? Eigen::VectorXd(ldlt.solve(gk)) : Eigen::VectorXd();
+  const Eigen::MatrixXd Ginv =
+      m > 0 ? Eigen::MatrixXd(ldlt.solve(Eigen::MatrixXd::Identity(m, m)))
+            : Eigen::MatrixXd();
+  // Back to the original scale.
+  double intercept_beta = ybar;
+  for (int a = 0; a < m; ++a) {
+    const int k = cols[keep[a]];
+    r.beta(k) = bz(a) / scale(k);
+    r.identified[k] = true;
+    if (intercept >= 0) intercept_beta -= r.beta(k) * mean(k);
+  }
+  if (intercept >= 0) {
+    r.beta(intercept) = intercept_beta;
+    r.identified[intercept] = true;
+  }
+  const int p_eff = m + (intercept >= 0 ? 1 : 0);
+  r.residuals = y - X * r.beta;
+  const double rss = r.residuals.squaredNorm();
+  const double tss = yc.squaredNorm();
+  r.dof = n - p_eff;
+  const double s2 = rss / std::max(1, r.dof);
+  r.sigma_eps = std::sqrt(s2);
+  r.r2 = tss > 0 ? 1.0 - rss / tss : 0.0;
+  if (m > 0 && intercept >= 0 && rss > 0) {
+    r.f_stat = ((tss - rss) / m) / s2;
+    r.p_value = FUpperP(r.f_stat, m, r.dof);
+  } else if (m > 0 && intercept >= 0) {
+    r.f_stat = std::numeric_limits<double>::infinity();
+    r.p_value = 0.0;
+  }
+  // Covariance: slopes from Ginv, intercept from the delta method.
+  for (int a = 0; a < m; ++a) {
+    for (int b = 0; b < m; ++b) {
+      const int ka = cols[keep[a]], kb = cols[keep[b]];
+      r.P_beta(ka, kb) = s2 * Ginv(a, b) / (scale(ka) * scale(kb));
+    }
+  }
+  if (intercept >= 0) {
+    double var0 = s2 / n;
+    for (int a = 0; a < m; ++a) {
+      const int ka = cols[keep[a]];
+      double cov = 0.0;
+      for (int b = 0; b < m; ++b) {
+        const int kb = cols[keep[b]];
+        cov -= r.P_beta(ka, kb) * mean(kb);
+      }
+      r.P_beta(intercept, ka) = r.P_beta(ka, intercept) = cov;
+      var0 -= cov * mean(ka);
+    }
+    r.P_beta(intercept, intercept) = var0;
+  }
+  r.std_err = r.P_beta.diagonal().cwiseMax(0.0).cwiseSqrt();
+  if (p_eff < p) {
+    r.status = FitStatus::kPartial;
+    r.why = std::to_string(p - p_eff) +
+            " term(s) not identified (constant or collinear input)";
+  } else {
+    r.status = FitStatus::kOk;
+  }
+  return r;
+}
+
+}  // namespace frictiond

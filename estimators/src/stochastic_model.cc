@@ -1,0 +1,508 @@
+#include "frictiond/estimators/stochastic_model.h"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <stdexcept>
+
+#include "frictiond/estimators/stats.h"
+
+namespace frictiond {
+
+const std::vector<double>& EpsQuantileLevels() {
+  static const std::vector<double> kLevels = [] {
+    std::vector<double> l = {0.001, 0.0025, 0.005, 0.0075};
+    for (int k = 1; k <= 99; ++k) l.push_back(k / 100.0);
+    for (double x : {0.9925, 0.995, 0.9975, 0.999}) l.push_back(x);
+    return l;
+  }();
+  return kLevels;
+}
+
+int RegressionModel::FindTerm(const std::string& name) const {
+  for (std::size_t k = 0; k < terms.size(); ++k) {
+    if (terms[k].Name() == name) return static_cast<int>(k);
+  }
+  return -1;
+}
+
+bool StochasticFitOptions::IsValid(std::string* why) const {
+  if (!labelling.IsValid(why)) return false;
+  auto fail = [&](const std::string& s) {
+    if (why) *why = s;
+    return false;
+  };
+  if (terms.empty()) return fail("terms: empty (need at least one term)");
+  for (const auto& t : terms) {
+    try {
+      Term::Parse(t);
+    } catch (const std::invalid_argument& e) {
+      return fail(std::string("terms: ") + e.what());
+    }
+  }
+  if (!(min_relative_span >= 0 && min_relative_span < 1))
+    return fail("min_relative_span = " + std::to_string(min_relative_span) +
+                " (must be in [0, 1))");
+  if (min_slip_samples < 3)
+    return fail("min_slip_samples = " + std::to_string(min_slip_samples) +
+                " (must be >= 3)");
+  if (!(never_level > 0 && never_level < 0.5))
+    return fail("never_level = " + std::to_string(never_level) +
+                " (must be in (0, 0.5))");
+  if (!(always_level > 0.5 && always_level < 1))
+    return fail("always_level = " + std::to_string(always_level) +
+                " (must be in (0.5, 1))");
+  return true;
+}
+
+namespace {
+
+void FillQuantiles(RegressionModel* m, const Eigen::VectorXd& residuals) {
+  // Only the order statistics the quantiles interpolate between are
+  // selected (successive nth_element on the shrinking tail), not a full sort.
+  std::vector<double> e(residuals.data(), residuals.data() + residuals.size());
+  m->eps_quantiles.clear();
+  if (e.empty()) return;
+  std::vector<std::size_t> order;
+  for (double p : EpsQuantileLevels()) {
+    const double h = p * (e.size() - 1);
+    order.push_back(static_cast<std::size_t>(std::floor(h)));
+    order.push_back(std::min(order.back() + 1, e.size() - 1));
+  }
+  std::sort(order.begin(), order.end());
+  std::size_t done = 0;
+  for (std::size_t k : order) {
+    if (k < done) continue;  // duplicates
+    std::nth_element(e.begin() + done, e.begin() + k, e.end());
+    done = k + 1;
+  }
+  for (double p : EpsQuantileLevels()) {
+    const double h = p * (e.size() - 1);
+    const std::size_t a = static_cast<std::size_t>(std::floor(h));
+    const std::size_t b = std::min(a + 1, e.size() - 1);
+    m->eps_quantiles.push_back(e[a] + (h - a) * (e[b] - e[a]));
+  }
+  m->mae = residuals.cwiseAbs().mean();
+}
+
+// Fits mu on `rows` with `terms`, fixing slopes of inputs without span.
+FitStatus FitRegression(const StrokeData& data,
+                        const std::vector<std::size_t>& rows,
+                        std::vector<Term> terms,
+                        double min_relative_span,
+                        RegressionModel* out,
+                        std::string* why) {
+  // Inputs without span: drop their terms (reported as unidentified).
+  std::vector<Term> kept;
+  std::vector<std::string> unidentified;
+  for (const Term& t : terms) {
+    if (t.kind == TermKind::kIntercept || t.kind == TermKind::kWindow) {
+      kept.push_back(t);
+      continue;
+    }
+    const std::vector<double>* col = data.Column(t.input);
+    if (!col)
+      throw std::invalid_argument("term '" + t.Name() + "': no column '" +
+                                  t.input + "' in the data");
+    std::vector<double> x;
+    x.reserve(rows.size());
+    for (std::size_t r : rows) x.push_back((*col)[r]);
+    std::sort(x.begin(), x.end());
+    const double span = SortedQuantile(x, 0.95) - SortedQuantile(x, 0.05);
+    const double mag = std::fabs(SortedQuantile(x, 0.5));
+    if (!(span > min_relative_span * mag) || !(span > 0)) {
+      unidentified.push_back(t.Name());
+    } else {
+      kept.push_back(t);
+    }
+  }
+  const Eigen::MatrixXd X = BuildDesign(data, kept, rows);
+  Eigen::VectorXd y(rows.size());
+  for (std::size_t r = 0; r < rows.size(); ++r) y(r) = data.mu(rows[r]);
+  const OlsResult ols = FitOls(X, y);
+  if (ols.status == FitStatus::kTooFewSamples ||
+      ols.status == FitStatus::kFailed) {
+    *why = ols.why;
+    return ols.status;
+  }
+  // Expand back to the full term list (unidentified terms at 0).
+  const int p = static_cast<int>(terms.size());
+  out->terms = terms;
+  out->beta = Eigen::VectorXd::Zero(p);
+  out->std_err = Eigen::VectorXd::Zero(p);
+  out->P_beta = Eigen::MatrixXd::Zero(p, p);
+  std::vector<int> index(kept.size());
+  for (std::size_t k = 0; k < kept.size(); ++k) {
+    index[k] = static_cast<int>(std::find(terms.begin(), terms.end(), kept[k]) -
+                                terms.begin());
+  }
+  for (std::size_t a = 0; a < kept.size(); ++a) {
+    if (!ols.identified[a]) unidentified.push_back(kept[a].Name());
+    out->beta(index[a]) = ols.beta(a);
+    out->std_err(index[a]) = ols.std_err(a);
+    for (std::size_t b = 0; b < kept.size(); ++b)
+      out->P_beta(index[a], index[b]) = ols.P_beta(a, b);
+  }
+  out->unidentified = unidentified;
+  out->sigma_eps = ols.sigma_eps;
+  out->r2 = ols.r2;
+  out->f_stat = ols.f_stat;
+  out->p_value = ols.p_value;
+  out->samples = ols.samples;
+  FillQuantiles(out, ols.residuals);
+  if (!unidentified.empty()) {
+    *why = "not identified (no span in the data, slope fixed at 0):";
+    for (const auto& u : unidentified) *why += " " + u;
+    return FitStatus::kPartial;
+  }
+  return FitStatus::kOk;
+}
+
+}  // namespace
+
+SlipLikelihoodFit FitSlipLikelihood(const std::vector<double>& ratio,
+                                    const std::vector<int>& slip,
+                                    double never_level,
+                                    double always_level) {
+  SlipLikelihoodFit fit;
+  fit.never_level = never_level;
+  fit.always_level = always_level;
+  const std::size_t n = std::min(ratio.size(), slip.size());
+  fit.samples = static_cast<int>(n);
+  std::size_t n_slip = 0;
+  double mean_r = 0, var_r = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    n_slip += slip[i] ? 1 : 0;
+    mean_r += ratio[i];
+  }
+  if (n_slip == 0 || n_slip == n) {
+    fit.why = n_slip == 0 ? "no slipping samples" : "no stick samples";
+    return fit;
+  }
+  mean_r /= n;
+  for (std::size_t i = 0; i < n; ++i)
+    var_r += (ratio[i] - mean_r) * (ratio[i] - mean_r);
+  const double sd_r = std::sqrt(var_r / n);
+  if (!(sd_r > 0)) {
+    fit.why = "all ratios equal";
+    return fit;
+  }
+  // IRLS on the standardised ratio z = (r - mean)/sd: eta = a + b z.
+  // A tiny ridge on b keeps separable data finite.
+  const double ridge = 1e-6 * n;
+  Eigen::Vector2d w(std::log(double(n_slip) / (n - n_slip)), 0.0);
+  Eigen::Matrix2d H;
+  for (int it = 0; it < 100; ++it) {
+    Eigen::Vector2d grad = Eigen::Vector2d::Zero();
+    H.setZero();
+    for (std::size_t i = 0; i < n; ++i) {
+      const double z = (ratio[i] - mean_r) / sd_r;
+      const double eta = w(0) + w(1) * z;
+      const double pi = 1.0 / (1.0 + std::exp(-eta));
+      const double wi = std::max(pi * (1 - pi), 1e-12);
+      const double ri = slip[i] - pi;
+      grad(0) += ri;
+      grad(1) += ri * z;
+      H(0, 0) += wi;
+      H(0, 1) += wi * z;
+      H(1, 1) += wi * z * z;
+    }
+    grad(1) -= ridge * w(1);
+    H(1, 1) += ridge;
+    H(1, 0) = H(0, 1);
+    const Eigen::Vector2d step = H.ldlt().solve(grad);
+    w += step;
+    if (step.norm() < 1e-10) break;
+  }
+  // Back to L = 1/(1+exp(-c1 (r - c2))).
+  fit.c1 = w(1) / sd_r;
+  fit.c2 = std::fabs(w(1)) > 0 ? mean_r - w(0) * sd_r / w(1) : mean_r;
+  // Covariance of (a, b) is H^-1; map to (c1, c2) by the delta method.
+  const Eigen::Matrix2d P_w = H.inverse();
+  Eigen::Matrix2d J;  // d(c1, c2)/d(a, b)
+  J << 0.0, 1.0 / sd_r, -sd_r / w(1), w(0) * sd_r / (w(1) * w(1));
+  fit.P_c = J * P_w * J.transpose();
+  auto logit = [](double p) { return std::log(p / (1 - p)); };
+  fit.ratio_never = fit.c2 + logit(never_level) / fit.c1;
+  fit.ratio_always = fit.c2 + logit(always_level) / fit.c1;
+  fit.valid = std::isfinite(fit.c1) && std::isfinite(fit.c2) && fit.c1 > 0;
+  if (!fit.valid)
+    fit.why = "likelihood does not increase with Ft/Fn (c1 = " +
+              std::to_string(fit.c1) + ")";
+  return fit;
+}
+
+StochasticFit FitStochasticModel(const StrokeData& input,
+                                 const StochasticFitOptions& options) {
+  std::string why;
+  if (!options.IsValid(&why)) throw std::invalid_argument(why);
+  StochasticFit fit;
+  StochasticFrictionModel& m = fit.model;
+  m.labelling = options.labelling;
+  // Copy only when labels must be derived.
+  StrokeData labelled;
+  const bool has_labels =
+      input.slip.size() == input.size() && input.stroke.size() == input.size();
+  if (!has_labels) {
+    labelled = input;
+    EnsureLabels(&labelled, options.labelling);
+  }
+  const StrokeData& data = has_labels ? input : labelled;
+  const std::vector<bool> mask = CalcFitMask(data, options.labelling);
+  std::vector<std::size_t> rows;
+  std::set<int> strokes;
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    if (mask[i]) {
+      rows.push_back(i);
+      strokes.insert(data.stroke[i]);
+    }
+  }
+  m.samples_total = static_cast<int>(data.size());
+  m.samples_slip = static_cast<int>(rows.size());
+  m.strokes = static_cast<int>(strokes.size());
+  if (static_cast<int>(rows.size()) < options.min_slip_samples) {
+    fit.status = FitStatus::kTooFewSamples;
+    fit.why =
+        std::to_string(rows.size()) + " slipping samples (need at least " +
+        std::to_string(options.min_slip_samples) +
+        "; check the slip thresholds slip_peak_mm_s=" +
+        std::to_string(options.labelling.peak_mm_s) +
+        ", slip_floor_mm_s=" + std::to_string(options.labelling.floor_mm_s) +
+        ")";
+    return fit;
+  }
+  std::vector<Term> terms;
+  for (const auto& t : options.terms) terms.push_back(Term::Parse(t));
+  // Coulomb: the mean mu of slipping samples.
+  double sum = 0;
+  for (std::size_t r : rows) sum += data.mu(r);
+  m.mu_coulomb = sum / rows.size();
+  double mae = 0;
+  for (std::size_t r : rows) mae += std::fabs(data.mu(r) - m.mu_coulomb);
+  m.mae_coulomb = mae / rows.size();
+  // Input statistics (for defaults and extrapolation flags).
+  std::set<std::string> inputs;
+  for (const Term& t : terms) {
+    if (!t.input.empty()) inputs.insert(t.input);
+  }
+  inputs.insert("fn_n");
+  inputs.insert("v_mm_s");
+  for (const auto& name : inputs) {
+    const std::vector<double>* col = data.Column(name);
+    if (!col)
+      throw std::invalid_argument("term input '" + name +
+                                  "': no such column in the data");
+    InputStats s{0.0, (*col)[rows[0]], (*col)[rows[0]]};
+    for (std::size_t r : rows) {
+      s.mean += (*col)[r];
+      s.min = std::min(s.min, (*col)[r]);
+      s.max = std::max(s.max, (*col)[r]);
+    }
+    s.mean /= rows.size();
+    m.inputs[name] = s;
+  }
+  // eq. (1) and the Fn-only model of III-C.
+  FitStatus st =
+      FitRegression(data, rows, terms, options.min_relative_span, &m.mu, &why);
+  if (st == FitStatus::kTooFewSamples || st == FitStatus::kFailed) {
+    fit.status = st;
+    fit.why = "mu model: " + why;
+    return fit;
+  }
+  std::string why_fn;
+  FitStatus st_fn = FitRegression(data,
+                                  rows,
+                                  {Term::Intercept(), Term::Linear("fn_n")},
+                                  options.min_relative_span,
+                                  &m.mu_fn_only,
+                                  &why_fn);
+  if (st_fn == FitStatus::kTooFewSamples || st_fn == FitStatus::kFailed) {
+    fit.status = st_fn;
+    fit.why = "Fn-only model: " + why_fn;
+    return fit;
+  }
+  // Sigmoid likelihood on all samples within the exclusion bounds.
+  std::vector<double> ratio;
+  std::vector<int> slip;
+  ratio.reserve(data.size());
+  slip.reserve(data.size());
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    if (data.fn_n[i] < options.labelling.max_fn_n &&
+        data.v_mm_s[i] < options.labelling.max_v_mm_s) {
+      ratio.push_back(data.mu(i));
+      slip.push_back(data.slip[i]);
+    }
+  }
+  m.likelihood =
+      FitSlipLikelihood(ratio, slip, options.never_level, options.always_level);
+  fit.status = st;
+  fit.why = st == FitStatus::kPartial ? why : "";
+  return fit;
+}
+
+double CalcEpsQuantile(const RegressionModel& model, double p) {
+  const auto& levels = EpsQuantileLevels();
+  const auto& q = model.eps_quantiles;
+  if (q.size() != levels.size()) return NormalQuantile(p) * model.sigma_eps;
+  if (p <= levels.front()) return q.front();
+  if (p >= levels.back()) return q.back();
+  const auto it = std::upper_bound(levels.begin(), levels.end(), p);
+  const std::size_t k = it - levels.begin();
+  const double w = (p - levels[k - 1]) / (levels[k] - levels[k - 1]);
+  return q[k - 1] + w * (q[k] - q[k - 1]);
+}
+
+double CalcEpsCdf(const RegressionModel& model, double e) {
+  const auto& levels = EpsQuantileLevels();
+  const auto& q = model.eps_quantiles;
+  if (q.size() != levels.size())
+    return model.sigma_eps > 0 ? NormalCdf(e / model.sigma_eps)
+                               : (e >= 0 ? 1.0 : 0.0);
+  if (e < q.front()) return 0.0;
+  if (e >= q.back()) return 1.0;
+  const auto it = std::upper_bound(q.begin(), q.end(), e);
+  const std::size_t k = it - q.begin();
+  const double dq = q[k] - q[k - 1];
+  const double w = dq > 0 ? (e - q[k - 1]) / dq : 1.0;
+  return levels[k - 1] + w * (levels[k] - levels[k - 1]);
+}
+
+MuPrediction PredictMu(const StochasticFrictionModel& model,
+                       const InputValues& inputs) {
+  MuPrediction out;
+  const RegressionModel& m = model.mu;
+  Eigen::VectorXd x(m.terms.size());
+  for (std::size_t k = 0; k < m.terms.size(); ++k) {
+    const Term& t = m.terms[k];
+    if (t.kind == TermKind::kIntercept) {
+      x(k) = 1.0;
+      continue;
+    }
+    double value = 0.0;
+    bool given = false;
+    for (const auto& [name, v] : inputs) {
+      if (name == t.input) {
+        value = v;
+        given = true;
+        break;
+      }
+    }
+    auto it = model.inputs.find(t.input);
+    if (!given) value = it != model.inputs.end() ? it->second.mean : 0.0;
+    if (given && it != model.inputs.end() &&
+        (value < it->second.min || value > it->second.max)) {
+      if (std::find(out.extrapolated_inputs.begin(),
+                    out.extrapolated_inputs.end(),
+                    t.input) == out.extrapolated_inputs.end()) {
+        out.extrapolated_inputs.push_back(t.input);
+      }
+    }
+    x(k) = t.Eval(value);
+  }
+  // Inputs the model does not use (e.g. an unidentified fn_n) still flag
+  // extrapolation.
+  for (const auto& [name, v] : inputs) {
+    auto it = model.inputs.find(name);
+    if (it != model.inputs.end() &&
+        (v < it->second.min || v > it->second.max) &&
+        std::find(out.extrapolated_inputs.begin(),
+                  out.extrapolated_inputs.end(),
+                  name) == out.extrapolated_inputs.end()) {
+      out.extrapolated_inputs.push_back(name);
+    }
+  }
+  out.extrapolated = !out.extrapolated_inputs.empty();
+  out.mu = m.beta.size() == x.size() ? m.beta.dot(x) : 0.0;
+  const double var_param =
+      m.P_beta.rows() == x.size() ? std::max(0.0, x.dot(m.P_beta * x)) : 0.0;
+  out.sigma = std::sqrt(m.sigma_eps * m.sigma_eps + var_param);
+  const double widen = m.sigma_eps > 0 ? out.sigma / m.sigma_eps : 1.0;
+  out.lo95 = out.mu + widen * CalcEpsQuantile(m, 0.025);
+  out.hi95 = out.mu + widen * CalcEpsQuantile(m, 0.975);
+  return out;
+}
+
+MuPrediction PredictMu(const StochasticFrictionModel& model,
+                       double fn_n,
+                       double v_mm_s) {
+  return PredictMu(model, InputValues{{"fn_n", fn_n}, {"v_mm_s", v_mm_s}});
+}
+
+namespace {
+
+// b0 + b2*Fn of the Fn-only model.
+double FnOnlyMean(const RegressionModel& m, double fn_n) {
+  double mean = 0.0;
+  for (std::size_t k = 0; k < m.terms.size(); ++k)
+    mean += m.beta(k) * m.terms[k].Eval(fn_n);
+  return mean;
+}
+
+}  // namespace
+
+double CalcSlipLikelihood(const StochasticFrictionModel& model,
+                          double fn_n,
+                          double ft_n) {
+  const double r = ft_n / fn_n;
+  if (model.likelihood.valid) {
+    const double z = model.likelihood.c1 * (r - model.likelihood.c2);
+    return 1.0 / (1.0 + std::exp(-z));
+  }
+  return CalcEpsCdf(model.mu_fn_only, r - FnOnlyMean(model.mu_fn_only, fn_n));
+}
+
+GripForce CalcGripForce(const StochasticFrictionModel& model,
+                        double load_n,
+                        double risk) {
+  if (!(load_n > 0) || !std::isfinite(load_n))
+    throw std::invalid_argument("load_n = " + std::to_string(load_n) +
+                                " (must be finite and > 0)");
+  if (!(risk > 0 && risk < 1))
+    throw std::invalid_argument("risk = " + std::to_string(risk) +
+                                " (must be in (0, 1))");
+  GripForce g;
+  const RegressionModel& m = model.mu_fn_only;
+  const int k0 = m.FindTerm("intercept");
+  const int k2 = m.FindTerm("fn_n");
+  const double b0 = k0 >= 0 ? m.beta(k0) : 0.0;
+  const double b2 = k2 >= 0 ? m.beta(k2) : 0.0;
+  const double c =
+      b0 + CalcEpsQuantile(m, risk);  // risk-quantile of mu at Fn = 0
+  // Solve b2 Fn^2 + c Fn - load = 0 for the smallest positive Fn.
+  double fn = 0.0;
+  if (std::fabs(b2) < 1e-12) {
+    if (!(c > 0)) {
+      g.why = "the " + std::to_string(risk) + " quantile of mu is " +
+              std::to_string(c) + " (<= 0): no grip holds";
+      return g;
+    }
+    fn = load_n / c;
+  } else {
+    const double disc = c * c + 4 * b2 * load_n;
+    if (disc < 0) {
+      g.why = "mu falls with Fn too fast: Fn*mu(Fn) peaks at " +
+              std::to_string(-c * c / (4 * b2)) + " N, below the load";
+      return g;
+    }
+    const double s = std::sqrt(disc);
+    const double r1 = (-c + s) / (2 * b2);
+    const double r2 = (-c - s) / (2 * b2);
+    fn = std::numeric_limits<double>::infinity();
+    for (double r : {r1, r2}) {
+      if (r > 0 && r < fn) fn = r;
+    }
+    if (!std::isfinite(fn)) {
+      g.why = "no positive normal force holds the load at this risk";
+      return g;
+    }
+  }
+  g.attainable = true;
+  g.fn_n = fn;
+  g.mu_used = load_n / fn;
+  auto it = model.inputs.find("fn_n");
+  if (it != model.inputs.end())
+    g.extrapolated = fn < it->second.min || fn > it->second.max;
+  return g;
+}
+
+}  // namespace frictiond

@@ -1,0 +1,48 @@
+#include <algorithm>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "frictiond/estimators/preprocessing.h"
+
+namespace frictiond {
+namespace {
+
+// Reference: copy each (shrinking) window and select its upper median.
+std::vector<double> NaiveMedian(const std::vector<double>& x, int kernel) {
+  if (kernel <= 1 || x.size() < 3) return x;
+  if (kernel % 2 == 0) ++kernel;
+  const int half = kernel / 2, n = static_cast<int>(x.size());
+  std::vector<double> out(x.size());
+  for (int i = 0; i < n; ++i) {
+    std::vector<double> w(x.begin() + std::max(0, i - half),
+                          x.begin() + std::min(n - 1, i + half) + 1);
+    std::nth_element(w.begin(), w.begin() + w.size() / 2, w.end());
+    out[i] = w[w.size() / 2];
+  }
+  return out;
+}
+
+TEST(MedianFilter, SlidingWindowEqualsNaiveSelection) {
+  std::mt19937 rng(42);
+  std::uniform_int_distribution<int> level(0, 5);  // many ties
+  for (int kernel : {1, 2, 3, 5, 24, 25, 101}) {
+    for (std::size_t n : {1u, 2u, 3u, 10u, 57u, 1000u}) {
+      std::vector<double> x(n);
+      for (auto& v : x) v = level(rng) * 0.5;
+      EXPECT_EQ(MedianFilter(x, kernel), NaiveMedian(x, kernel))
+          << "kernel " << kernel << " n " << n;
+    }
+  }
+}
+
+TEST(MedianFilter, RemovesIsolatedSpikes) {
+  std::vector<double> v(50, 20.0);
+  v[10] = 500.0;
+  v[30] = -400.0;
+  const auto f = MedianFilter(v, 5);
+  EXPECT_EQ(f, std::vector<double>(50, 20.0));
+}
+
+}  // namespace
+}  // namespace frictiond
