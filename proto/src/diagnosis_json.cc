@@ -1,0 +1,138 @@
+#include "frictiond/proto/diagnosis_json.h"
+
+#include <cmath>
+
+namespace frictiond {
+
+namespace {
+
+nlohmann::json Number(double x) {
+  return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr);
+}
+
+nlohmann::json ModelJson(const DiagnosedModel& m) {
+  nlohmann::json j;
+  j["model"] = m.model;
+  j["cv_mae"] = Number(m.cv_mae);
+  j["terms"] = m.terms;
+  nlohmann::json coefficients = nlohmann::json::object();
+  for (std::size_t k = 0; k < m.terms.size() && k < m.beta.size(); ++k)
+    coefficients[m.terms[k]] = Number(m.beta[k]);
+  j["coefficients"] = coefficients;
+  j["sigma_eps"] = Number(m.sigma_eps);
+  j["cv_log_likelihood"] = Number(m.cv_log_likelihood);
+  return j;
+}
+
+nlohmann::json ErrorsJson(const ReplayErrors& e, bool overall) {
+  nlohmann::json j;
+  if (!overall) j["stroke"] = e.stroke;
+  j["samples"] = e.samples;
+  j["slip_samples"] = e.slip_samples;
+  j["mu_mae"] = Number(e.mu_mae);
+  j["slip_events"] = e.slip_events;
+  j["hits"] = e.hits;
+  j["misses"] = e.misses;
+  j["false_alarms"] = e.false_alarms;
+  j["brier"] = Number(e.brier);
+  if (!overall) {
+    j["breakaway_measured"] = Number(e.breakaway_measured);
+    j["breakaway_predicted"] = Number(e.breakaway_predicted);
+  }
+  j["breakaway_abs_error"] = Number(e.breakaway_abs_error);
+  j["breakaway_bias"] = Number(e.breakaway_bias);
+  return j;
+}
+
+}  // namespace
+
+nlohmann::json DiagnosisToJson(const DiagnosisResult& r,
+                               const DiagnosisOptions& options,
+                               const std::string& labelling_rule,
+                               const DiagnosisJsonOptions& json_options) {
+  nlohmann::json j;
+  j["status"] = ToString(r.status);
+  if (!r.why.empty()) j["why"] = r.why;
+  j["baseline"] = ModelJson(r.baseline);
+  nlohmann::json findings = nlohmann::json::array();
+  for (const Finding& f : r.findings) {
+    findings.push_back(
+        {{"cause", f.cause},
+         {"kind", f.kind},
+         {"p_value", Number(f.p_value)},
+         {"cv_mae_gain_pct", Number(f.cv_mae_gain_pct)},
+         {"effect", f.effect},
+         {"expansion", f.expansion},
+         {"terms", f.terms},
+         {"cv_mae", Number(f.cv_mae)},
+         {"log_likelihood_gain", Number(f.log_likelihood_gain)}});
+  }
+  j["findings"] = findings;
+  nlohmann::json extended = ModelJson(r.extended);
+  extended["gain_pct"] = Number(r.gain_pct);
+  extended["log_likelihood_gain"] = Number(r.log_likelihood_gain);
+  j["extended"] = extended;
+  j["log_likelihood_gain"] = Number(r.log_likelihood_gain);
+  j["data"] = {{"samples", r.samples},
+               {"fit_samples", r.fit_samples},
+               {"strokes", r.strokes},
+               {"candidates", r.candidates},
+               {"skipped", r.skipped},
+               {"dropped_baseline_terms", r.dropped_baseline_terms}};
+  j["labelling"] = {{"slip_peak_mm_s", options.labelling.peak_mm_s},
+                    {"slip_floor_mm_s", options.labelling.floor_mm_s},
+                    {"median_window_s", options.labelling.median_window_s},
+                    {"rule", labelling_rule}};
+  j["statistics"] = {
+      {"cross_validation",
+       "leave-strokes-out K-fold (folds assigned by stroke, seeded shuffle)"},
+      {"folds", r.folds},
+      {"seed", options.seed},
+      {"test",
+       "one-sided paired t-test over strokes of held-out absolute-error "
+       "differences"},
+      {"correction",
+       "Holm over all candidates x expansions of each greedy step"},
+      {"alpha", options.alpha},
+      {"min_gain_pct", options.min_gain_pct},
+      {"selection", "greedy forward, largest significant held-out gain first"}};
+  if (json_options.replay) {
+    nlohmann::json replay = nlohmann::json::array();
+    for (const ModelReplay& m : r.replay) {
+      nlohmann::json jm = {{"model", m.model},
+                           {"terms", m.terms},
+                           {"overall", ErrorsJson(m.overall, true)}};
+      if (json_options.replay_strokes) {
+        nlohmann::json strokes = nlohmann::json::array();
+        for (const ReplayErrors& e : m.strokes)
+          strokes.push_back(ErrorsJson(e, false));
+        jm["strokes"] = strokes;
+      }
+      replay.push_back(jm);
+    }
+    j["replay"] = replay;
+    j["replay_skipped"] = {
+        "lugre: not replayed (the LuGre estimator was not available as a "
+        "stable, committed API)"};
+  }
+  if (json_options.tests) {
+    nlohmann::json tests = nlohmann::json::array();
+    for (const CandidateTest& t : r.tests) {
+      tests.push_back({{"step", t.step},
+                       {"cause", t.cause},
+                       {"kind", t.kind},
+                       {"expansion", t.expansion},
+                       {"terms", t.terms},
+                       {"cv_mae", Number(t.cv_mae)},
+                       {"gain_pct", Number(t.gain_pct)},
+                       {"t", Number(t.t_stat)},
+                       {"p_raw", Number(t.p_raw)},
+                       {"p_holm", Number(t.p_holm)},
+                       {"significant", t.significant}});
+    }
+    j["tests"] = tests;
+  }
+  return j;
+}
+
+}  // namespace frictiond

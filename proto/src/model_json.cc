@@ -1,0 +1,240 @@
+#include "frictiond/proto/model_json.h"
+
+#include <stdexcept>
+
+namespace frictiond {
+
+using nlohmann::json;
+
+namespace {
+
+const json& Get(const json& j,
+                const std::string& key,
+                const std::string& where) {
+  if (!j.is_object())
+    throw std::invalid_argument(where + ": expected a JSON object");
+  auto it = j.find(key);
+  if (it == j.end())
+    throw std::invalid_argument(where + "." + key + ": missing");
+  return *it;
+}
+
+double GetNumber(const json& j,
+                 const std::string& key,
+                 const std::string& where) {
+  const json& v = Get(j, key, where);
+  if (!v.is_number())
+    throw std::invalid_argument(where + "." + key + ": expected a number");
+  return v.get<double>();
+}
+
+double GetNumberOr(const json& j, const std::string& key, double fallback) {
+  auto it = j.find(key);
+  return (it != j.end() && it->is_number()) ? it->get<double>() : fallback;
+}
+
+json Finite(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
+
+}  // namespace
+
+json RegressionModelToJson(const RegressionModel& m) {
+  json j;
+  json coef = json::object(), se = json::object();
+  json names = json::array();
+  for (std::size_t k = 0; k < m.terms.size(); ++k) {
+    const std::string n = m.terms[k].Name();
+    names.push_back(n);
+    coef[n] = m.beta(k);
+    se[n] = m.std_err(k);
+  }
+  j["coefficients"] = coef;
+  j["std_errors"] = se;
+  json cov = json::array();
+  for (int a = 0; a < m.P_beta.rows(); ++a) {
+    json row = json::array();
+    for (int b = 0; b < m.P_beta.cols(); ++b) row.push_back(m.P_beta(a, b));
+    cov.push_back(row);
+  }
+  j["covariance"] = {{"terms", names}, {"matrix", cov}};
+  j["unidentified"] = m.unidentified;
+  j["sigma_eps"] = m.sigma_eps;
+  j["r2"] = m.r2;
+  j["f_stat"] = Finite(m.f_stat);
+  j["p_value"] = m.p_value;
+  j["mae"] = m.mae;
+  j["samples"] = m.samples;
+  j["eps_quantiles"] = {{"levels", EpsQuantileLevels()},
+                        {"values", m.eps_quantiles}};
+  return j;
+}
+
+RegressionModel RegressionModelFromJson(const json& j,
+                                        const std::string& where) {
+  RegressionModel m;
+  const json& coef = Get(j, "coefficients", where);
+  if (!coef.is_object() || coef.empty())
+    throw std::invalid_argument(where +
+                                ".coefficients: expected a non-empty object");
+  // Term order: from covariance.terms when present, else the object's order.
+  std::vector<std::string> names;
+  if (j.contains("covariance") && j["covariance"].contains("terms")) {
+    names = j["covariance"]["terms"].get<std::vector<std::string>>();
+  } else {
+    if (coef.contains("intercept")) names.push_back("intercept");
+    for (auto it = coef.begin(); it != coef.end(); ++it) {
+      if (it.key() != "intercept") names.push_back(it.key());
+    }
+  }
+  const int p = static_cast<int>(names.size());
+  m.beta = Eigen::VectorXd::Zero(p);
+  m.std_err = Eigen::VectorXd::Zero(p);
+  m.P_beta = Eigen::MatrixXd::Zero(p, p);
+  for (int k = 0; k < p; ++k) {
+    m.terms.push_back(Term::Parse(names[k]));
+    m.beta(k) = GetNumber(coef, names[k], where + ".coefficients");
+    if (j.contains("std_errors"))
+      m.std_err(k) = GetNumberOr(j["std_errors"], names[k], 0.0);
+  }
+  if (j.contains("covariance") && j["covariance"].contains("matrix")) {
+    const json& mat = j["covariance"]["matrix"];
+    if (!mat.is_array() || static_cast<int>(mat.size()) != p)
+      throw std::invalid_argument(where + ".covariance.matrix: expected " +
+                                  std::to_string(p) + " rows");
+    for (int a = 0; a < p; ++a) {
+      if (!mat[a].is_array() || static_cast<int>(mat[a].size()) != p)
+        throw std::invalid_argument(where + ".covariance.matrix[" +
+                                    std::to_string(a) + "]: expected " +
+                                    std::to_string(p) + " numbers");
+      for (int b = 0; b < p; ++b) m.P_beta(a, b) = mat[a][b].get<double>();
+    }
+  }
+  if (j.contains("unidentified"))
+    m.unidentified = j["unidentified"].get<std::vector<std::string>>();
+  m.sigma_eps = GetNumber(j, "sigma_eps", where);
+  if (!(m.sigma_eps >= 0))
+    throw std::invalid_argument(where + ".sigma_eps: must be >= 0");
+  m.r2 = GetNumberOr(j, "r2", 0.0);
+  m.f_stat = GetNumberOr(j, "f_stat", 0.0);
+  m.p_value = GetNumberOr(j, "p_value", 1.0);
+  m.mae = GetNumberOr(j, "mae", 0.0);
+  m.samples = static_cast<int>(GetNumberOr(j, "samples", 0));
+  if (j.contains("eps_quantiles") && j["eps_quantiles"].contains("values")) {
+    m.eps_quantiles = j["eps_quantiles"]["values"].get<std::vector<double>>();
+    if (m.eps_quantiles.size() != EpsQuantileLevels().size()) {
+      throw std::invalid_argument(where + ".eps_quantiles.values: expected " +
+                                  std::to_string(EpsQuantileLevels().size()) +
+                                  " values");
+    }
+  }
+  return m;
+}
+
+json StochasticModelToJson(const StochasticFrictionModel& model) {
+  json j = RegressionModelToJson(model.mu);
+  j["fn_only"] = RegressionModelToJson(model.mu_fn_only);
+  const SlipLikelihoodFit& L = model.likelihood;
+  j["slip_likelihood"] = {{"valid", L.valid},
+                          {"why", L.why},
+                          {"c1", L.c1},
+                          {"c2", L.c2},
+                          {"ratio_never", L.ratio_never},
+                          {"ratio_always", L.ratio_always},
+                          {"never_level", L.never_level},
+                          {"always_level", L.always_level},
+                          {"samples", L.samples}};
+  json inputs = json::object();
+  for (const auto& [name, s] : model.inputs)
+    inputs[name] = {{"mean", s.mean}, {"min", s.min}, {"max", s.max}};
+  j["inputs"] = inputs;
+  j["mu_coulomb"] = model.mu_coulomb;
+  j["mae_coulomb"] = model.mae_coulomb;
+  j["strokes"] = model.strokes;
+  j["samples_total"] = model.samples_total;
+  j["samples_slip"] = model.samples_slip;
+  const SlipLabelOptions& o = model.labelling;
+  j["labelling"] = {{"slip_peak_mm_s", o.peak_mm_s},
+                    {"slip_floor_mm_s", o.floor_mm_s},
+                    {"median_window_s", o.median_window_s},
+                    {"max_fn_n", Finite(o.max_fn_n)},
+                    {"max_v_mm_s", Finite(o.max_v_mm_s)},
+                    {"gap_factor", o.gap_factor}};
+  return j;
+}
+
+StochasticFrictionModel StochasticModelFromJson(const json& j) {
+  StochasticFrictionModel m;
+  m.mu = RegressionModelFromJson(j, "stochastic");
+  if (j.contains("fn_only"))
+    m.mu_fn_only = RegressionModelFromJson(j["fn_only"], "stochastic.fn_only");
+  if (j.contains("slip_likelihood")) {
+    const json& L = j["slip_likelihood"];
+    m.likelihood.valid = L.value("valid", false);
+    m.likelihood.why = L.value("why", "");
+    m.likelihood.c1 = GetNumberOr(L, "c1", 0.0);
+    m.likelihood.c2 = GetNumberOr(L, "c2", 0.0);
+    m.likelihood.ratio_never = GetNumberOr(L, "ratio_never", 0.0);
+    m.likelihood.ratio_always = GetNumberOr(L, "ratio_always", 0.0);
+    m.likelihood.never_level = GetNumberOr(L, "never_level", 0.01);
+    m.likelihood.always_level = GetNumberOr(L, "always_level", 0.99);
+    m.likelihood.samples = static_cast<int>(GetNumberOr(L, "samples", 0));
+  }
+  if (j.contains("inputs") && j["inputs"].is_object()) {
+    for (auto it = j["inputs"].begin(); it != j["inputs"].end(); ++it) {
+      m.inputs[it.key()] = InputStats{GetNumberOr(*it, "mean", 0.0),
+                                      GetNumberOr(*it, "min", 0.0),
+                                      GetNumberOr(*it, "max", 0.0)};
+    }
+  }
+  m.mu_coulomb = GetNumberOr(j, "mu_coulomb", 0.0);
+  m.mae_coulomb = GetNumberOr(j, "mae_coulomb", 0.0);
+  m.strokes = static_cast<int>(GetNumberOr(j, "strokes", 0));
+  m.samples_total = static_cast<int>(GetNumberOr(j, "samples_total", 0));
+  m.samples_slip = static_cast<int>(GetNumberOr(j, "samples_slip", 0));
+  if (j.contains("labelling")) {
+    const json& o = j["labelling"];
+    m.labelling.peak_mm_s =
+        GetNumberOr(o, "slip_peak_mm_s", m.labelling.peak_mm_s);
+    m.labelling.floor_mm_s =
+        GetNumberOr(o, "slip_floor_mm_s", m.labelling.floor_mm_s);
+    m.labelling.median_window_s =
+        GetNumberOr(o, "median_window_s", m.labelling.median_window_s);
+    m.labelling.max_fn_n = GetNumberOr(o, "max_fn_n", m.labelling.max_fn_n);
+    m.labelling.max_v_mm_s =
+        GetNumberOr(o, "max_v_mm_s", m.labelling.max_v_mm_s);
+    m.labelling.gap_factor =
+        GetNumberOr(o, "gap_factor", m.labelling.gap_factor);
+  }
+  return m;
+}
+
+json ModelSetToJson(const ModelSet& set) {
+  json j = set.other.is_object() ? set.other : json::object();
+  j["material"] = set.material;
+  j["fingertip"] = set.fingertip;
+  j["version"] = set.version;
+  j["created_at"] = set.created_at;
+  if (set.stochastic) j["stochastic"] = StochasticModelToJson(*set.stochastic);
+  return j;
+}
+
+ModelSet ModelSetFromJson(const json& j) {
+  if (!j.is_object())
+    throw std::invalid_argument("model: expected a JSON object");
+  ModelSet s;
+  s.material = j.value("material", "");
+  s.fingertip = j.value("fingertip", "default");
+  s.version = j.value("version", 0);
+  s.created_at = j.value("created_at", "");
+  if (j.contains("stochastic"))
+    s.stochastic = StochasticModelFromJson(j["stochastic"]);
+  for (auto it = j.begin(); it != j.end(); ++it) {
+    const std::string& k = it.key();
+    if (k != "material" && k != "fingertip" && k != "version" &&
+        k != "created_at" && k != "stochastic") {
+      s.other[k] = *it;
+    }
+  }
+  return s;
+}
+
+}  // namespace frictiond

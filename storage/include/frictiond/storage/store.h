@@ -1,0 +1,180 @@
+#pragma once
+/// @file
+/// The persistent friction library. `Store` is the interface the daemon
+/// talks to; OpenStore() picks a back end from a URL (a SQLite file path
+/// today; `postgresql://...` is reserved for the fleet back end).
+///
+/// Guarantees of every back end:
+/// - Each mutating call is one transaction: it either happens completely or
+///   not at all, and once it returns it survives a crash (kill -9).
+/// - Model versions are append-only: a refit adds version n+1; old versions
+///   stay queryable.
+/// - Thread-safe: calls may come from any thread.
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace frictiond {
+
+/// A surface material of the library.
+struct Material {
+  std::string id;  ///< [A-Za-z0-9._-]{1,64}
+  std::string name;
+  std::string description;
+  std::vector<std::string> tags;
+  std::string created_at;  ///< ISO-8601 UTC, set by the store
+  std::string updated_at;  ///< ISO-8601 UTC, set by the store
+};
+
+/// A robot fingertip (friction belongs to a fingertip-surface pair). The
+/// fingertip "default" always exists.
+struct Fingertip {
+  std::string id;
+  std::string name;
+  std::string description;
+  std::string created_at;
+};
+
+/// A stroke upload: the raw samples exactly as uploaded, plus provenance.
+struct StrokeRecord {
+  std::int64_t id = 0;  ///< assigned by the store
+  std::string material;
+  std::string fingertip = "default";
+  std::string robot;        ///< source robot (free text, may be empty)
+  std::string received_at;  ///< set by the store
+  std::int64_t samples = 0;
+  std::string csv;  ///< raw body (empty in listings)
+};
+
+/// One model version of a (material, fingertip) pair.
+struct ModelRecord {
+  std::string material;
+  std::string fingertip = "default";
+  int version = 0;         ///< assigned by the store: 1, 2, ...
+  std::string created_at;  ///< set by the store
+  std::string
+      reason;  ///< why it was made ("upload", "bundled", "diagnosis", ...)
+  std::int64_t stroke_id = 0;  ///< stroke that triggered it (0: none)
+  std::string json;            ///< model document (families keyed by name)
+};
+
+/// An identification job: the library asked a robot for a test stroke.
+struct IdentificationJob {
+  std::int64_t id = 0;
+  std::string material;
+  std::string fingertip = "default";
+  std::string
+      state;  ///< requested | stroking | enough_coverage | fitted | failed
+  std::string plan_json;     ///< stroke plan sent to the robot
+  std::string detail;        ///< last progress or failure reason
+  std::string requested_by;  ///< robot or client that triggered it
+  std::string created_at;
+  std::string updated_at;
+};
+
+/// A registered reference image of a material (for recognition).
+struct ImageRecord {
+  std::int64_t id = 0;
+  std::string material;
+  std::string mime;
+  std::string features;  ///< serialised feature vector (back-end neutral bytes)
+  std::string created_at;
+};
+
+/// Result of Store::CommitUpload.
+struct UploadCommit {
+  std::int64_t stroke_id = 0;
+  int version = 0;
+  bool material_created = false;
+};
+
+/// Storage interface. Copy: no; move: no (held through unique_ptr).
+class Store {
+ public:
+  virtual ~Store() = default;
+  Store(const Store&) = delete;
+  Store& operator=(const Store&) = delete;
+
+  // --- materials -----------------------------------------------------------
+  /// Creates or updates a material (id, name, description, tags).
+  /// @return true when it was created.
+  virtual bool PutMaterial(const Material& material) = 0;
+  virtual std::optional<Material> GetMaterial(const std::string& id) = 0;
+  virtual std::vector<Material> ListMaterials() = 0;
+  /// Deletes a material with its strokes, models, jobs and images.
+  /// @return false when it did not exist.
+  virtual bool DeleteMaterial(const std::string& id) = 0;
+
+  // --- fingertips ----------------------------------------------------------
+  virtual bool PutFingertip(const Fingertip& fingertip) = 0;
+  virtual std::optional<Fingertip> GetFingertip(const std::string& id) = 0;
+  virtual std::vector<Fingertip> ListFingertips() = 0;
+
+  // --- strokes and models --------------------------------------------------
+  /// Stores a stroke and the model refitted with it as one transaction,
+  /// creating the material (name = id) if it does not exist. The model's
+  /// version is the pair's newest + 1. Any identification job of the pair
+  /// moves to `fitted`.
+  virtual UploadCommit CommitUpload(const StrokeRecord& stroke,
+                                    const ModelRecord& model) = 0;
+  /// Appends a model version (e.g. an extended model found by diagnosis).
+  /// @return the new version.
+  virtual int AddModelVersion(const ModelRecord& model) = 0;
+  /// Strokes of a pair, oldest first, without their csv.
+  virtual std::vector<StrokeRecord> ListStrokes(
+      const std::string& material, const std::string& fingertip) = 0;
+  /// One stroke with its csv.
+  virtual std::optional<StrokeRecord> GetStroke(std::int64_t id) = 0;
+  /// Newest model version of a pair.
+  virtual std::optional<ModelRecord> GetLatestModel(
+      const std::string& material, const std::string& fingertip) = 0;
+  /// A given version.
+  virtual std::optional<ModelRecord> GetModel(const std::string& material,
+                                              const std::string& fingertip,
+                                              int version) = 0;
+  /// All versions of a pair, oldest first, without their json.
+  virtual std::vector<ModelRecord> ListModels(const std::string& material,
+                                              const std::string& fingertip) = 0;
+
+  // --- identification jobs ------------------------------------------------
+  /// Opens a job for the pair unless an open one (requested/stroking/
+  /// enough_coverage) exists; returns the open job either way.
+  virtual IdentificationJob RequestIdentification(
+      const IdentificationJob& job) = 0;
+  /// Updates state and detail of a job. @return false when it does not exist.
+  virtual bool UpdateJob(std::int64_t id,
+                         const std::string& state,
+                         const std::string& detail) = 0;
+  virtual std::optional<IdentificationJob> GetJob(std::int64_t id) = 0;
+  /// Jobs, newest first; `open_only` keeps requested/stroking/enough_coverage.
+  virtual std::vector<IdentificationJob> ListJobs(bool open_only) = 0;
+
+  // --- images ---------------------------------------------------------------
+  virtual std::int64_t AddImage(const ImageRecord& image) = 0;
+  virtual std::vector<ImageRecord> ListImages() = 0;
+
+  // --- housekeeping ----------------------------------------------------------
+  /// Schema version (number of applied migrations).
+  virtual int SchemaVersion() = 0;
+  /// Back end name ("sqlite", ...).
+  virtual std::string BackendName() const = 0;
+  /// Runs the back end's consistency check; empty string when fine.
+  virtual std::string CheckIntegrity() = 0;
+
+ protected:
+  Store() = default;
+};
+
+/// Opens a store: a SQLite database file (created if missing; ":memory:" for
+/// a private in-memory database).
+/// @throws std::invalid_argument for an unsupported URL,
+/// std::runtime_error when the database cannot be opened or migrated.
+std::unique_ptr<Store> OpenStore(const std::string& url);
+
+/// Current UTC time, ISO-8601 with milliseconds ("2026-11-22T21:05:07.123Z").
+std::string NowIso8601();
+
+}  // namespace frictiond

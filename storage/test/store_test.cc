@@ -1,0 +1,164 @@
+#include "frictiond/storage/store.h"
+
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+namespace frictiond {
+namespace {
+
+// The suite is parametrised by back end URL factory so a second back end
+// (PostgreSQL) runs the same tests unchanged.
+class StoreTest : public ::testing::TestWithParam<std::string> {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() /
+           ("frictiond_store_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::remove_all(dir_);
+    std::filesystem::create_directories(dir_);
+    url_ = GetParam() == "sqlite-file" ? (dir_ / "lib.db").string()
+                                       : std::string(":memory:");
+    store_ = OpenStore(url_);
+  }
+  void TearDown() override {
+    store_.reset();
+    std::filesystem::remove_all(dir_);
+  }
+  ModelRecord Model(const std::string& material, const std::string& json) {
+    ModelRecord m;
+    m.material = material;
+    m.reason = "test";
+    m.json = json;
+    return m;
+  }
+  std::filesystem::path dir_;
+  std::string url_;
+  std::unique_ptr<Store> store_;
+};
+
+TEST_P(StoreTest, MaterialsCrud) {
+  Material m{"rubber-1", "Rubber", "soft", {"elastomer", "grey"}, "", ""};
+  EXPECT_TRUE(store_->PutMaterial(m));
+  m.name = "Rubber v2";
+  EXPECT_FALSE(store_->PutMaterial(m));
+  auto got = store_->GetMaterial("rubber-1");
+  ASSERT_TRUE(got);
+  EXPECT_EQ(got->name, "Rubber v2");
+  EXPECT_EQ(got->tags, (std::vector<std::string>{"elastomer", "grey"}));
+  EXPECT_FALSE(got->created_at.empty());
+  EXPECT_EQ(store_->ListMaterials().size(), 1u);
+  EXPECT_TRUE(store_->DeleteMaterial("rubber-1"));
+  EXPECT_FALSE(store_->DeleteMaterial("rubber-1"));
+  EXPECT_FALSE(store_->GetMaterial("rubber-1"));
+}
+
+TEST_P(StoreTest, SqlMetacharactersAreData) {
+  Material m{"x",
+             "Robert'); DROP TABLE materials;--",
+             "\"quoted\" ; --",
+             {"a'b"},
+             "",
+             ""};
+  store_->PutMaterial(m);
+  auto got = store_->GetMaterial("x");
+  ASSERT_TRUE(got);
+  EXPECT_EQ(got->name, m.name);
+  EXPECT_EQ(got->tags[0], "a'b");
+  EXPECT_EQ(store_->ListMaterials().size(), 1u);
+}
+
+TEST_P(StoreTest, DefaultFingertipExists) {
+  ASSERT_TRUE(store_->GetFingertip("default"));
+  EXPECT_TRUE(store_->PutFingertip(
+      Fingertip{"silicone-17mm", "Dragon Skin 30", "", ""}));
+  EXPECT_EQ(store_->ListFingertips().size(), 2u);
+}
+
+TEST_P(StoreTest, UploadsAppendVersionsNeverOverwrite) {
+  StrokeRecord s;
+  s.material = "felt";
+  s.robot = "arm-7";
+  s.samples = 3;
+  s.csv = "t_s,fn_n,ft_n,v_mm_s\n0,1,1,0\n";
+  const UploadCommit c1 = store_->CommitUpload(s, Model("felt", "{\"v\":1}"));
+  EXPECT_TRUE(c1.material_created);
+  EXPECT_EQ(c1.version, 1);
+  const UploadCommit c2 = store_->CommitUpload(s, Model("felt", "{\"v\":2}"));
+  EXPECT_FALSE(c2.material_created);
+  EXPECT_EQ(c2.version, 2);
+  EXPECT_EQ(store_->AddModelVersion(Model("felt", "{\"v\":3}")), 3);
+  EXPECT_EQ(store_->GetLatestModel("felt", "default")->json, "{\"v\":3}");
+  EXPECT_EQ(store_->GetModel("felt", "default", 1)->json, "{\"v\":1}");
+  EXPECT_EQ(store_->GetModel("felt", "default", 2)->stroke_id, c2.stroke_id);
+  EXPECT_EQ(store_->ListModels("felt", "default").size(), 3u);
+  const auto strokes = store_->ListStrokes("felt", "default");
+  ASSERT_EQ(strokes.size(), 2u);
+  EXPECT_EQ(strokes[0].robot, "arm-7");
+  EXPECT_TRUE(strokes[0].csv.empty());
+  EXPECT_EQ(store_->GetStroke(c1.stroke_id)->csv, s.csv);
+  // Other fingertips are separate pairs.
+  StrokeRecord s2 = s;
+  s2.fingertip = "tip-b";
+  ModelRecord m2 = Model("felt", "{}");
+  m2.fingertip = "tip-b";
+  EXPECT_EQ(store_->CommitUpload(s2, m2).version, 1);
+  EXPECT_TRUE(store_->GetFingertip("tip-b"));
+  // Delete cascades.
+  EXPECT_TRUE(store_->DeleteMaterial("felt"));
+  EXPECT_FALSE(store_->GetLatestModel("felt", "default"));
+  EXPECT_FALSE(store_->GetStroke(c1.stroke_id));
+}
+
+TEST_P(StoreTest, IdentificationJobsOpenOncePerPair) {
+  IdentificationJob j;
+  j.material = "unknown-cloth";
+  j.plan_json = "{}";
+  j.requested_by = "robot-1";
+  const auto a = store_->RequestIdentification(j);
+  const auto b = store_->RequestIdentification(j);
+  EXPECT_EQ(a.id, b.id);
+  EXPECT_EQ(a.state, "requested");
+  EXPECT_EQ(store_->ListJobs(true).size(), 1u);
+  StrokeRecord s;
+  s.material = "unknown-cloth";
+  s.csv = "x";
+  ModelRecord m;
+  m.material = "unknown-cloth";
+  m.json = "{}";
+  store_->CommitUpload(s, m);
+  EXPECT_EQ(store_->GetJob(a.id)->state, "fitted");
+  EXPECT_TRUE(store_->ListJobs(true).empty());
+  EXPECT_EQ(store_->ListJobs(false).size(), 1u);
+  EXPECT_TRUE(store_->UpdateJob(a.id, "failed", "why"));
+  EXPECT_FALSE(store_->UpdateJob(999, "failed", "why"));
+}
+
+TEST_P(StoreTest, ReopenKeepsDataAndSchema) {
+  if (GetParam() != "sqlite-file")
+    GTEST_SKIP() << "in-memory database does not persist";
+  store_->PutMaterial(Material{"a", "A", "", {}, "", ""});
+  const int schema = store_->SchemaVersion();
+  EXPECT_GE(schema, 1);
+  store_.reset();
+  store_ = OpenStore(url_);
+  EXPECT_EQ(store_->SchemaVersion(), schema);
+  EXPECT_TRUE(store_->GetMaterial("a"));
+  EXPECT_EQ(store_->CheckIntegrity(), "");
+}
+
+TEST(OpenStore, RejectsUnsupportedUrl) {
+  EXPECT_THROW(OpenStore("postgresql://localhost/x"), std::invalid_argument);
+  EXPECT_THROW(OpenStore(""), std::invalid_argument);
+  EXPECT_THROW(OpenStore("/nonexistent-dir/x/y.db"), std::runtime_error);
+}
+
+INSTANTIATE_TEST_SUITE_P(Backends,
+                         StoreTest,
+                         ::testing::Values("sqlite-file", "sqlite-memory"));
+
+}  // namespace
+}  // namespace frictiond
