@@ -1,0 +1,180 @@
+#pragma once
+/// @file
+/// Material recognition from a photograph of a surface (CONTRACT.md, HTTP
+/// API, "Recognition"): reference images are registered per material id, and
+/// a query image is answered with the most similar materials, best first, or
+/// flagged unknown.
+///
+/// Method (details and measured accuracy in docs/recognition.md): the image
+/// is decoded (PNG or JPEG only), resized to a fixed working size, and
+/// described by brightness-insensitive colour and texture histograms:
+///   - a hue-saturation histogram (hue and saturation do not change when the
+///     light gets brighter or dimmer),
+///   - rotation-invariant uniform LBP histograms (riu2, 8 samples) at radii
+///     1, 2 and 3 on the working image and radii 1 and 2 at half resolution
+///     (LBP only compares a pixel with its neighbours, so it is unchanged by
+///     any monotonic brightness change),
+///   - a histogram of intensity relative to the image median (contrast
+///     shape).
+/// Sensor-clipped pixels (grey >= 250) are left out of the texture and
+/// intensity histograms.
+/// Each histogram is compared with the Hellinger distance H in [0, 1]; the
+/// similarity of two images is score = 1 - sum_b w_b H_b (weights sum to 1),
+/// so score is in [0, 1] and 1 means identical histograms. A material's score
+/// is the best score over its references (1-nearest neighbour per material).
+///
+/// Usage:
+/// @code
+///   frictiond::MaterialRecognizer recognizer;
+///   recognizer.AddReference("ptfe_sheet", png_bytes);
+///   const frictiond::RecognitionResult r = recognizer.Recognize(query_jpeg);
+///   if (!r.unknown) use(r.candidates.front().material);
+/// @endcode
+///
+/// The header does not include OpenCV: the implementation is private
+/// (internal::RecognizerImpl).
+
+#include <cstddef>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace frictiond {
+
+namespace internal {
+class RecognizerImpl;
+}  // namespace internal
+
+/// One candidate material for a query image.
+struct RecognitionCandidate {
+  std::string material;  ///< material id given at registration
+  double score = 0.0;    ///< similarity in [0, 1], higher = more similar
+};
+
+/// Answer to MaterialRecognizer::Recognize.
+struct RecognitionResult {
+  /// True when no registered material is similar enough: the best score is
+  /// below RecognizerOptions::unknown_threshold, the margin over the second
+  /// material is below RecognizerOptions::min_margin, or nothing is
+  /// registered. The candidates are still reported (they are the closest
+  /// materials, not matches).
+  bool unknown = true;
+  /// Up to RecognizerOptions::max_candidates distinct materials, best first
+  /// (ties broken by material id).
+  std::vector<RecognitionCandidate> candidates;
+};
+
+/// Matching options. Feature extraction itself has no options, so features
+/// stored by one configuration stay valid in any other.
+struct RecognizerOptions {
+  /// A query whose best material score is below this is unknown. Calibrated
+  /// on the GIMP texture set (docs/recognition.md): correct matches under
+  /// rotation, 0.7-1.4 scale and 0.7-1.3 brightness mostly score above it,
+  /// unregistered textures mostly below. Must be in [0, 1].
+  double unknown_threshold = 0.90;
+  /// A query is also unknown when best - second best material score is below
+  /// this (a ratio-style ambiguity test). 0 disables it. Must be in [0, 1].
+  double min_margin = 0.0;
+  /// Maximum number of candidates returned. Must be >= 1.
+  int max_candidates = 5;
+
+  /// Returns true when all fields satisfy their rules; otherwise returns
+  /// false and, when `why` is not null, sets it to a message naming the
+  /// field, its value and the rule.
+  bool IsValid(std::string* why) const;
+};
+
+/// Registry of reference images per material and nearest-neighbour
+/// recogniser.
+///
+/// Image input (every method taking `encoded_image`): PNG or JPEG bytes, at
+/// least kMinImageSide pixels on each side and at most kMaxImagePixels
+/// pixels in total (checked from the file header before decoding). Anything
+/// else throws std::invalid_argument with a message starting with "image: ".
+///
+/// Thread safety: all methods are safe to call concurrently. An internal
+/// reader-writer lock lets any number of Recognize / ExtractFeatures /
+/// reference_count calls run in parallel; AddReference*, RemoveMaterial and
+/// Clear take the lock exclusively (image decoding and feature extraction in
+/// AddReference happen before the lock is taken).
+///
+/// Move-only (moves are noexcept). A moved-from recogniser may only be
+/// destroyed or assigned to.
+class MaterialRecognizer {
+ public:
+  /// Smallest accepted image side [px]: below this there is no texture to
+  /// describe.
+  static constexpr int kMinImageSide = 32;
+  /// Largest accepted image size [px] (40 megapixels), to bound decoding
+  /// memory and time.
+  static constexpr long long kMaxImagePixels = 40'000'000;
+
+  /// @throws std::invalid_argument when `options.IsValid()` fails (message
+  /// from IsValid).
+  explicit MaterialRecognizer(RecognizerOptions options = {});
+  ~MaterialRecognizer();
+  MaterialRecognizer(MaterialRecognizer&&) noexcept;
+  MaterialRecognizer& operator=(MaterialRecognizer&&) noexcept;
+  MaterialRecognizer(const MaterialRecognizer&) = delete;
+  MaterialRecognizer& operator=(const MaterialRecognizer&) = delete;
+
+  /// Number of floats in a feature vector (fixed by kFeatureVersion).
+  static std::size_t feature_size();
+  /// Version of the feature layout and extraction method. Persisted feature
+  /// vectors must be discarded (and recomputed from the images) when it
+  /// changes.
+  static constexpr int kFeatureVersion = 1;
+
+  /// Decodes `encoded_image` and registers it as a reference for
+  /// `material_id`. A material may have any number of references; several
+  /// photos (different spots, lighting) make recognition more robust.
+  /// @throws std::invalid_argument "material_id: ..." for an empty id, or
+  /// "image: ..." for an image that cannot be used (the message names the
+  /// reason: empty, not PNG/JPEG, truncated, too small, too large). Nothing
+  /// is registered when it throws.
+  void AddReference(const std::string& material_id,
+                    std::string_view encoded_image);
+
+  /// Returns the feature vector of `encoded_image` (feature_size() floats),
+  /// for persisting and re-registering with AddReferenceFeatures without
+  /// decoding again.
+  /// @throws std::invalid_argument "image: ..." as AddReference.
+  std::vector<float> ExtractFeatures(std::string_view encoded_image) const;
+
+  /// Registers a feature vector produced by ExtractFeatures (same
+  /// kFeatureVersion).
+  /// @throws std::invalid_argument "material_id: ..." for an empty id, or
+  /// "features: ..." when the size is not feature_size(), a value is negative
+  /// or not finite, or a histogram block is not unit-normalised.
+  void AddReferenceFeatures(const std::string& material_id,
+                            std::vector<float> features);
+
+  /// Removes every reference of `material_id`; returns how many were
+  /// removed (0 when the id is unknown).
+  std::size_t RemoveMaterial(const std::string& material_id);
+
+  /// Removes all references.
+  void Clear();
+
+  /// Ranks the registered materials by similarity to `encoded_image`.
+  /// With nothing registered the answer is unknown with no candidates.
+  /// @throws std::invalid_argument "image: ..." as AddReference.
+  RecognitionResult Recognize(std::string_view encoded_image) const;
+
+  /// Same as Recognize, from a vector returned by ExtractFeatures.
+  /// @throws std::invalid_argument "features: ..." as AddReferenceFeatures.
+  RecognitionResult RecognizeFeatures(const std::vector<float>& features) const;
+
+  /// Number of registered reference images (all materials).
+  std::size_t reference_count() const;
+  /// Number of distinct registered materials.
+  std::size_t material_count() const;
+  /// The options given at construction.
+  const RecognizerOptions& options() const;
+
+ private:
+  std::unique_ptr<internal::RecognizerImpl> impl_;
+};
+
+}  // namespace frictiond

@@ -1,0 +1,214 @@
+#include "frictiond/recognition/material_recognizer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <mutex>
+#include <shared_mutex>
+#include <stdexcept>
+#include <unordered_map>
+#include <utility>
+
+#include "image_features.h"
+
+namespace frictiond {
+namespace internal {
+
+/// Registered references, stored as one contiguous feature array so that a
+/// query is a single linear scan.
+class RecognizerImpl {
+ public:
+  explicit RecognizerImpl(RecognizerOptions options) : options_(options) {}
+
+  const RecognizerOptions& options() const { return options_; }
+
+  void Add(const std::string& material_id, const std::vector<float>& features) {
+    std::unique_lock lock(mutex_);
+    materials_.push_back(material_id);
+    features_.insert(features_.end(), features.begin(), features.end());
+  }
+
+  std::size_t Remove(const std::string& material_id) {
+    std::unique_lock lock(mutex_);
+    const std::size_t n = FeatureSize();
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < materials_.size(); ++i) {
+      if (materials_[i] == material_id) continue;
+      if (kept != i) {
+        materials_[kept] = std::move(materials_[i]);
+        std::copy_n(features_.begin() + i * n, n, features_.begin() + kept * n);
+      }
+      ++kept;
+    }
+    const std::size_t removed = materials_.size() - kept;
+    materials_.resize(kept);
+    features_.resize(kept * n);
+    return removed;
+  }
+
+  void Clear() {
+    std::unique_lock lock(mutex_);
+    materials_.clear();
+    features_.clear();
+  }
+
+  RecognitionResult Recognize(const std::vector<float>& query) const {
+    std::vector<RecognitionCandidate> best;
+    {
+      std::shared_lock lock(mutex_);
+      const std::size_t n = FeatureSize();
+      std::unordered_map<std::string_view, std::size_t> index;
+      for (std::size_t i = 0; i < materials_.size(); ++i) {
+        const double score = CalcSimilarity(query.data(), &features_[i * n]);
+        const auto [it, inserted] = index.emplace(materials_[i], best.size());
+        if (inserted) {
+          best.push_back({materials_[i], score});
+        } else if (score > best[it->second].score) {
+          best[it->second].score = score;
+        }
+      }
+    }
+    std::sort(best.begin(),
+              best.end(),
+              [](const RecognitionCandidate& a, const RecognitionCandidate& b) {
+                if (a.score != b.score) return a.score > b.score;
+                return a.material < b.material;
+              });
+    RecognitionResult result;
+    result.unknown = true;
+    if (!best.empty()) {
+      const double margin =
+          best.size() > 1 ? best[0].score - best[1].score : best[0].score;
+      result.unknown =
+          !(best[0].score >= options_.unknown_threshold) ||
+          (options_.min_margin > 0.0 && margin < options_.min_margin);
+    }
+    if (best.size() > static_cast<std::size_t>(options_.max_candidates)) {
+      best.resize(static_cast<std::size_t>(options_.max_candidates));
+    }
+    result.candidates = std::move(best);
+    return result;
+  }
+
+  std::size_t reference_count() const {
+    std::shared_lock lock(mutex_);
+    return materials_.size();
+  }
+
+  std::size_t material_count() const {
+    std::shared_lock lock(mutex_);
+    std::vector<std::string_view> ids(materials_.begin(), materials_.end());
+    std::sort(ids.begin(), ids.end());
+    return static_cast<std::size_t>(std::unique(ids.begin(), ids.end()) -
+                                    ids.begin());
+  }
+
+ private:
+  const RecognizerOptions options_;
+  mutable std::shared_mutex mutex_;
+  std::vector<std::string> materials_;  ///< material id of reference i
+  std::vector<float> features_;         ///< reference i at [i * FeatureSize()]
+};
+
+}  // namespace internal
+
+namespace {
+
+void CheckMaterialId(const std::string& material_id) {
+  if (material_id.empty()) {
+    throw std::invalid_argument("material_id: empty (must be non-empty)");
+  }
+}
+
+std::vector<float> DecodeAndExtract(std::string_view encoded_image) {
+  return internal::ComputeFeatures(
+      internal::DecodeImage(encoded_image,
+                            MaterialRecognizer::kMinImageSide,
+                            MaterialRecognizer::kMaxImagePixels));
+}
+
+std::string Number(double value) {
+  // std::to_string prints fixed 6 decimals; enough for options in [0, 1].
+  return std::to_string(value);
+}
+
+}  // namespace
+
+bool RecognizerOptions::IsValid(std::string* why) const {
+  std::string message;
+  if (!(unknown_threshold >= 0.0 && unknown_threshold <= 1.0)) {
+    message = "unknown_threshold = " + Number(unknown_threshold) +
+              " (must be in [0, 1])";
+  } else if (!(min_margin >= 0.0 && min_margin <= 1.0)) {
+    message = "min_margin = " + Number(min_margin) + " (must be in [0, 1])";
+  } else if (!(max_candidates >= 1)) {
+    message = "max_candidates = " + std::to_string(max_candidates) +
+              " (must be >= 1)";
+  }
+  if (message.empty()) return true;
+  if (why != nullptr) *why = std::move(message);
+  return false;
+}
+
+MaterialRecognizer::MaterialRecognizer(RecognizerOptions options) {
+  std::string why;
+  if (!options.IsValid(&why)) throw std::invalid_argument(why);
+  impl_ = std::make_unique<internal::RecognizerImpl>(options);
+}
+
+MaterialRecognizer::~MaterialRecognizer() = default;
+MaterialRecognizer::MaterialRecognizer(MaterialRecognizer&&) noexcept = default;
+MaterialRecognizer& MaterialRecognizer::operator=(
+    MaterialRecognizer&&) noexcept = default;
+
+std::size_t MaterialRecognizer::feature_size() {
+  return internal::FeatureSize();
+}
+
+void MaterialRecognizer::AddReference(const std::string& material_id,
+                                      std::string_view encoded_image) {
+  CheckMaterialId(material_id);
+  impl_->Add(material_id, DecodeAndExtract(encoded_image));
+}
+
+std::vector<float> MaterialRecognizer::ExtractFeatures(
+    std::string_view encoded_image) const {
+  return DecodeAndExtract(encoded_image);
+}
+
+void MaterialRecognizer::AddReferenceFeatures(const std::string& material_id,
+                                              std::vector<float> features) {
+  CheckMaterialId(material_id);
+  internal::CheckFeatures(features);
+  impl_->Add(material_id, features);
+}
+
+std::size_t MaterialRecognizer::RemoveMaterial(const std::string& material_id) {
+  return impl_->Remove(material_id);
+}
+
+void MaterialRecognizer::Clear() { impl_->Clear(); }
+
+RecognitionResult MaterialRecognizer::Recognize(
+    std::string_view encoded_image) const {
+  return impl_->Recognize(DecodeAndExtract(encoded_image));
+}
+
+RecognitionResult MaterialRecognizer::RecognizeFeatures(
+    const std::vector<float>& features) const {
+  internal::CheckFeatures(features);
+  return impl_->Recognize(features);
+}
+
+std::size_t MaterialRecognizer::reference_count() const {
+  return impl_->reference_count();
+}
+
+std::size_t MaterialRecognizer::material_count() const {
+  return impl_->material_count();
+}
+
+const RecognizerOptions& MaterialRecognizer::options() const {
+  return impl_->options();
+}
+
+}  // namespace frictiond

@@ -1,0 +1,62 @@
+#pragma once
+/// @file
+/// The frictiond daemon: configuration, wiring of store, library, HTTP (and
+/// later LCM) endpoints, start-up data loading and orderly shutdown.
+
+#include <memory>
+#include <string>
+
+#include "frictiond/server/http_server.h"
+#include "frictiond/server/library.h"
+
+namespace frictiond {
+
+/// Daemon configuration (flags, or a JSON file with the same keys).
+struct DaemonConfig {
+  std::string db = "frictiond.db";  ///< SQLite file (created if missing)
+  int port = 8080;                  ///< HTTP port (0: any free port)
+  std::string bind = "127.0.0.1";   ///< HTTP bind address
+  std::string data_dir;  ///< bundled datasets for an empty library; "none"
+                         ///< loads nothing
+  std::string lcm_url = "none";  ///< LCM provider URL; "none" disables LCM
+  int max_body_mb = 16;          ///< request body limit [MiB]
+  int threads = 8;               ///< HTTP worker threads
+  StrokePlanOptions plan;        ///< test stroke asked of robots
+
+  /// Reads a JSON config file:
+  /// {"db","port","bind","data","lcm","max_body_mb","threads", "plan":
+  /// {"fn_min_n","fn_max_n","v_min_mm_s","v_max_mm_s","max_duration_s","min_span_pct"}}.
+  /// Keys not given keep their current value.
+  /// @throws std::invalid_argument naming the file, key and rule.
+  void LoadFile(const std::string& path);
+  /// @throws std::invalid_argument naming the option, value and rule.
+  void Validate() const;
+};
+
+/// Runs one daemon. Not copyable or movable.
+class Daemon {
+ public:
+  explicit Daemon(DaemonConfig config);
+  ~Daemon();
+  Daemon(const Daemon&) = delete;
+  Daemon& operator=(const Daemon&) = delete;
+
+  /// Opens the store, loads bundled data into an empty library, binds HTTP.
+  /// @return the bound HTTP port.
+  int Start();
+  /// Serves until Stop() (blocking).
+  void Serve();
+  /// Stops serving (any thread).
+  void Stop();
+
+  FrictionLibrary& library();
+  HttpServer& http();
+  const DaemonConfig& config() const { return config_; }
+
+ private:
+  DaemonConfig config_;
+  std::unique_ptr<FrictionLibrary> library_;
+  std::unique_ptr<HttpServer> http_;
+};
+
+}  // namespace frictiond

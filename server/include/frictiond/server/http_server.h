@@ -1,0 +1,108 @@
+#pragma once
+/// @file
+/// HTTP front end. Routes are registered as transport-neutral handlers
+/// (HttpRequest -> HttpResponse), so feature modules add routes without
+/// touching the HTTP library, and handlers are testable without sockets.
+/// A handler reports the caller's mistakes by throwing RequestError; the
+/// server turns it into {"error", "detail", "field", ...} with its status.
+
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "frictiond/server/metrics.h"
+
+namespace frictiond {
+
+/// One HTTP request, as handlers see it.
+struct HttpRequest {
+  std::string method;
+  std::string path;
+  std::string body;
+  std::string remote_addr;
+  std::vector<std::string>
+      params;  ///< {captures} of the route pattern, in order
+  std::multimap<std::string, std::string> query;  ///< decoded query parameters
+  std::multimap<std::string, std::string> headers;
+
+  /// First value of a query parameter.
+  std::optional<std::string> Query(const std::string& name) const;
+  /// Query parameter or a default.
+  std::string QueryOr(const std::string& name,
+                      const std::string& fallback) const;
+  /// Required finite number. @throws RequestError(400) naming the parameter.
+  double RequireNumber(const std::string& name) const;
+  /// Header value ("" when absent; names are case-insensitive).
+  std::string Header(const std::string& name) const;
+};
+
+/// A response.
+struct HttpResponse {
+  int status = 200;
+  std::string content_type = "application/json";
+  std::string body;
+  std::multimap<std::string, std::string> headers;
+
+  static HttpResponse Json(int status, const nlohmann::json& body);
+  /// Body already serialised as JSON.
+  static HttpResponse RawJson(int status, std::string body);
+  static HttpResponse Error(int status,
+                            const std::string& error,
+                            const std::string& detail,
+                            const std::string& field = "");
+};
+
+using HttpHandler = std::function<HttpResponse(const HttpRequest&)>;
+
+/// Server options.
+struct HttpOptions {
+  std::size_t max_body_bytes = 16u << 20;  ///< larger bodies get 413
+  int threads = 8;                         ///< worker threads
+  int keep_alive_max_count = 100000;  ///< requests per kept-alive connection
+  int keep_alive_timeout_s = 5;
+  int read_timeout_s = 10;
+};
+
+/// Not copyable or movable.
+class HttpServer {
+ public:
+  explicit HttpServer(HttpOptions options = {});
+  ~HttpServer();
+  HttpServer(const HttpServer&) = delete;
+  HttpServer& operator=(const HttpServer&) = delete;
+
+  /// Registers a handler for a path pattern such as
+  /// "/v1/materials/{id}/model": literal segments must match, each {name}
+  /// captures one segment into HttpRequest::params (in order). The pattern
+  /// is also the route's label in metrics.
+  void Route(const std::string& method,
+             const std::string& pattern,
+             HttpHandler handler);
+
+  /// Binds to address:port (port 0 picks a free one).
+  /// @return the bound port. @throws std::runtime_error when binding fails.
+  int Bind(const std::string& address, int port);
+  /// Serves until Stop() (blocking). Call after Bind.
+  void Serve();
+  /// Stops serving; safe from any thread (not from a signal handler).
+  void Stop();
+  /// True once Serve() is accepting connections.
+  bool running() const;
+
+  Metrics& metrics();
+
+  /// Dispatches a request without sockets (used by tests and by the
+  /// server itself).
+  HttpResponse Dispatch(HttpRequest request) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace frictiond

@@ -1,0 +1,195 @@
+#pragma once
+/// @file
+/// The friction library service core: the logic behind every endpoint
+/// (HTTP today, LCM beside it), independent of the transport. It validates
+/// input, fits models, writes through the Store and serves reads from an
+/// in-memory cache that writes invalidate.
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <shared_mutex>
+#include <stdexcept>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "frictiond/estimators/stochastic_model.h"
+#include "frictiond/proto/model_json.h"
+#include "frictiond/server/request_error.h"
+#include "frictiond/storage/store.h"
+
+namespace frictiond {
+
+/// Span a test stroke should cover (paper 000, II-C: 0-5 N, slow ~15 to
+/// fast ~80 mm/s).
+struct StrokePlanOptions {
+  double fn_min_n = 0.5;
+  double fn_max_n = 4.5;
+  double v_min_mm_s = 15.0;
+  double v_max_mm_s = 80.0;
+  double max_duration_s = 120.0;
+  double min_span_pct =
+      50.0;  ///< coverage of the reference span that suffices (Fig. 10)
+};
+
+/// A model version as served: the parsed model and its JSON text.
+struct CachedModel {
+  ModelSet set;
+  std::string json_text;  ///< serialised ModelSetToJson(set)
+};
+
+/// Result of IngestStrokes.
+struct IngestResult {
+  std::int64_t stroke_id = 0;
+  int version = 0;
+  bool material_created = false;
+  std::size_t samples = 0;
+  std::shared_ptr<const CachedModel> model;
+  std::string fit_status;  ///< "ok" or "partial"
+  std::string fit_note;    ///< e.g. which slopes were not identified
+};
+
+/// Options of one stroke upload (query parameters of the HTTP route).
+struct IngestOptions {
+  std::string fingertip = "default";
+  std::string robot;
+  /// Slip labelling; when unset, the pair's previous labelling (or the
+  /// defaults) is used.
+  std::optional<SlipLabelOptions> labelling;
+};
+
+/// Service options.
+struct LibraryOptions {
+  StrokePlanOptions plan;
+  std::size_t max_samples_per_upload = 5'000'000;
+};
+
+/// Thread-safe service core. Not copyable or movable.
+class FrictionLibrary {
+ public:
+  FrictionLibrary(std::unique_ptr<Store> store, LibraryOptions options = {});
+  ~FrictionLibrary();
+  FrictionLibrary(const FrictionLibrary&) = delete;
+  FrictionLibrary& operator=(const FrictionLibrary&) = delete;
+
+  Store& store() { return *store_; }
+  const LibraryOptions& options() const { return options_; }
+
+  // --- materials ----------------------------------------------------------
+  std::vector<Material> ListMaterials();
+  /// @throws RequestError(404) when unknown (no identification is requested).
+  Material GetMaterial(const std::string& id);
+  /// Creates or updates from the contract's JSON body
+  /// {"name","description","tags"}.
+  /// @return true when created. @throws RequestError(400) naming the field.
+  bool PutMaterial(const std::string& id, const std::string& json_body);
+  /// @return false when it did not exist.
+  bool DeleteMaterial(const std::string& id);
+
+  // --- models ---------------------------------------------------------------
+  /// Newest model of the pair, or nullptr when there is none.
+  std::shared_ptr<const CachedModel> FindModel(const std::string& material,
+                                               const std::string& fingertip);
+  /// A given version, or nullptr.
+  std::shared_ptr<const CachedModel> FindModelVersion(
+      const std::string& material, const std::string& fingertip, int version);
+  /// Newest model, or throws RequestError(404) whose extra() holds the
+  /// identification request (job and stroke plan) it recorded.
+  std::shared_ptr<const CachedModel> RequireModel(
+      const std::string& material,
+      const std::string& fingertip,
+      const std::string& requested_by);
+  /// Records (or finds the open) identification job for an unknown pair and
+  /// returns the JSON the caller should act on.
+  nlohmann::json RequestIdentification(const std::string& material,
+                                       const std::string& fingertip,
+                                       const std::string& requested_by);
+  /// The stroke to perform for a pair, as JSON.
+  nlohmann::json MakeStrokePlan(const std::string& material,
+                                const std::string& fingertip) const;
+
+  /// Validates a stroke CSV, refits the pair's model on all its strokes and
+  /// stores stroke + model version in one transaction.
+  /// @throws RequestError (400 bad CSV naming line and field, 413 too many
+  /// samples, 422 no usable slip) and stores nothing then.
+  IngestResult IngestStrokes(const std::string& material,
+                             const std::string& csv,
+                             const IngestOptions& options);
+
+  /// Stores an already fitted model as a new version (e.g. from diagnosis).
+  std::shared_ptr<const CachedModel> AddModelVersion(
+      const std::string& material,
+      const std::string& fingertip,
+      const StochasticFrictionModel& model,
+      const std::string& reason,
+      const nlohmann::json& extra_families = nlohmann::json::object());
+
+  /// All stored strokes of a pair, parsed and appended (stroke ids distinct).
+  /// Each upload is labelled (given labels kept, else `labelling`, else the
+  /// newest model's labelling) and gets the derived features of CONTRACT.md.
+  StrokeData LoadStrokes(
+      const std::string& material,
+      const std::string& fingertip,
+      std::optional<SlipLabelOptions> labelling = std::nullopt);
+
+  /// Loads the bundled datasets described by DIR/datasets.json into an empty
+  /// library. Returns the number of materials loaded (0 when the library
+  /// already had materials). @throws std::runtime_error on a broken bundle.
+  int LoadBundledData(const std::string& dir);
+
+  /// Fits an additional model family (e.g. "lugre") when strokes arrive.
+  /// Gets all strokes of the pair (labelled; the new upload last), the new
+  /// upload alone, and the pair's previous model set (nullptr for none).
+  /// Returns the family's JSON, or null when the data cannot identify it
+  /// (then the previous version of the family, if any, is kept); may set
+  /// *note to say why. Must not throw for unusable data.
+  using FamilyFitter = std::function<nlohmann::json(const StrokeData& all,
+                                                    const StrokeData& upload,
+                                                    const CachedModel* previous,
+                                                    std::string* note)>;
+  /// Registers a family fitter under its JSON key (before serving starts).
+  void AddFamilyFitter(const std::string& family, FamilyFitter fitter);
+
+  /// Drops the cached model of a pair (or of every pair) so the next read
+  /// goes to the store: for writes made by another daemon on a shared
+  /// database (fleet back ends call this when notified).
+  void InvalidateCached(const std::string& material,
+                        const std::string& fingertip);
+  void InvalidateAllCached();
+
+  /// Called after every new model version (from any thread).
+  using ModelListener = std::function<void(const CachedModel&)>;
+  void AddModelListener(ModelListener listener);
+
+ private:
+  static void PrepareUpload(StrokeData* data,
+                            const SlipLabelOptions& labelling);
+  std::shared_ptr<const CachedModel> Decode(const ModelRecord& record) const;
+  void Invalidate(const std::string& material, const std::string& fingertip);
+  void Notify(const std::shared_ptr<const CachedModel>& model);
+
+  std::unique_ptr<Store> store_;
+  LibraryOptions options_;
+  std::shared_mutex cache_mu_;
+  std::unordered_map<std::string, std::shared_ptr<const CachedModel>>
+      cache_;             // key: material '\n' fingertip
+  std::mutex ingest_mu_;  // serialises refits so versions follow upload order
+  std::vector<std::pair<std::string, FamilyFitter>> fitters_;
+  std::mutex listeners_mu_;
+  std::vector<ModelListener> listeners_;
+};
+
+/// Parses slip-labelling overrides from query-style parameters
+/// (slip_peak_mm_s, slip_floor_mm_s, median_window_s, max_fn_n, max_v_mm_s).
+/// `get` returns the raw value or nullopt. Returns nullopt when none is given.
+/// @throws RequestError(400) naming the parameter.
+std::optional<SlipLabelOptions> ParseLabelling(
+    const std::function<std::optional<std::string>(const std::string&)>& get,
+    const SlipLabelOptions& base);
+
+}  // namespace frictiond

@@ -1,0 +1,77 @@
+// frictiond: the friction material-library daemon. Parses flags, builds the
+// daemon, serves until SIGTERM/SIGINT.
+#include <iostream>
+#include <thread>
+
+#include <CLI/CLI.hpp>
+#include <signal.h>
+
+#include "frictiond/server/daemon.h"
+
+#ifndef FRICTIOND_DEFAULT_DATA_DIR
+#define FRICTIOND_DEFAULT_DATA_DIR "data"
+#endif
+
+int main(int argc, char** argv) {
+  frictiond::DaemonConfig config;
+  config.data_dir = FRICTIOND_DEFAULT_DATA_DIR;
+  CLI::App app{"frictiond: friction material-library daemon"};
+  std::string config_file;
+  app.add_option(
+      "--config", config_file, "JSON config file (flags given override it)");
+  // Flags are applied after the config file, so remember which were given.
+  std::string db, bind, data, lcm;
+  int port = -1, max_body_mb = -1, threads = -1;
+  app.add_option(
+      "--db", db, "SQLite database file (created if missing) [frictiond.db]");
+  app.add_option("--port", port, "HTTP port [8080]");
+  app.add_option("--bind", bind, "HTTP bind address [127.0.0.1]");
+  app.add_option("--data",
+                 data,
+                 "bundled datasets loaded into an empty database, or 'none' "
+                 "[project data/]");
+  app.add_option("--lcm", lcm, "LCM provider URL, or 'none' [none]");
+  app.add_option(
+      "--max-body-mb", max_body_mb, "request body limit in MiB [16]");
+  app.add_option("--threads", threads, "HTTP worker threads [8]");
+  CLI11_PARSE(app, argc, argv);
+
+  // Block the stop signals in every thread; one thread waits for them.
+  sigset_t stop_signals;
+  sigemptyset(&stop_signals);
+  sigaddset(&stop_signals, SIGTERM);
+  sigaddset(&stop_signals, SIGINT);
+  pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+  signal(SIGPIPE, SIG_IGN);
+
+  try {
+    if (!config_file.empty()) config.LoadFile(config_file);
+    if (!db.empty()) config.db = db;
+    if (!bind.empty()) config.bind = bind;
+    if (!data.empty()) config.data_dir = data;
+    if (!lcm.empty()) config.lcm_url = lcm;
+    if (port >= 0) config.port = port;
+    if (max_body_mb >= 0) config.max_body_mb = max_body_mb;
+    if (threads >= 0) config.threads = threads;
+    frictiond::Daemon daemon(config);
+    const int bound = daemon.Start();
+    std::thread waiter([&daemon, stop_signals] {
+      int sig = 0;
+      sigwait(&stop_signals, &sig);
+      std::cerr << "frictiond: signal " << sig << ", shutting down\n";
+      daemon.Stop();
+    });
+    std::cerr << "frictiond: serving http://" << config.bind << ":" << bound
+              << " (db " << config.db << ")\n";
+    daemon.Serve();
+    // Serve returned: either a signal arrived or the server failed. Wake the
+    // waiter if it is still waiting.
+    pthread_kill(waiter.native_handle(), SIGTERM);
+    waiter.join();
+    std::cerr << "frictiond: stopped\n";
+  } catch (const std::exception& e) {
+    std::cerr << "frictiond: " << e.what() << "\n";
+    return 2;
+  }
+  return 0;
+}

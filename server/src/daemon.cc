@@ -1,0 +1,134 @@
+#include "frictiond/server/daemon.h"
+
+#include <fstream>
+#include <iostream>
+
+#include "frictiond/server/routes.h"
+
+namespace frictiond {
+
+using nlohmann::json;
+
+void DaemonConfig::LoadFile(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::invalid_argument("--config " + path + ": cannot read");
+  json j;
+  try {
+    j = json::parse(in);
+  } catch (const json::parse_error& e) {
+    throw std::invalid_argument("--config " + path +
+                                ": invalid JSON: " + e.what());
+  }
+  if (!j.is_object())
+    throw std::invalid_argument("--config " + path +
+                                ": expected a JSON object");
+  auto str = [&](const char* key, std::string* out) {
+    if (!j.contains(key)) return;
+    if (!j[key].is_string())
+      throw std::invalid_argument(path + ": " + key + ": expected a string");
+    *out = j[key].get<std::string>();
+  };
+  auto integer = [&](const json& obj, const char* key, int* out) {
+    if (!obj.contains(key)) return;
+    if (!obj[key].is_number_integer())
+      throw std::invalid_argument(path + ": " + key + ": expected an integer");
+    *out = obj[key].get<int>();
+  };
+  auto number = [&](const json& obj, const char* key, double* out) {
+    if (!obj.contains(key)) return;
+    if (!obj[key].is_number())
+      throw std::invalid_argument(path + ": plan." + key +
+                                  ": expected a number");
+    *out = obj[key].get<double>();
+  };
+  for (auto it = j.begin(); it != j.end(); ++it) {
+    static const char* kKeys[] = {
+        "db", "port", "bind", "data", "lcm", "max_body_mb", "threads", "plan"};
+    if (std::find(std::begin(kKeys), std::end(kKeys), it.key()) ==
+        std::end(kKeys)) {
+      throw std::invalid_argument(path + ": unknown key '" + it.key() + "'");
+    }
+  }
+  str("db", &db);
+  str("bind", &bind);
+  str("data", &data_dir);
+  str("lcm", &lcm_url);
+  integer(j, "port", &port);
+  integer(j, "max_body_mb", &max_body_mb);
+  integer(j, "threads", &threads);
+  if (j.contains("plan")) {
+    const json& p = j["plan"];
+    if (!p.is_object())
+      throw std::invalid_argument(path + ": plan: expected an object");
+    number(p, "fn_min_n", &plan.fn_min_n);
+    number(p, "fn_max_n", &plan.fn_max_n);
+    number(p, "v_min_mm_s", &plan.v_min_mm_s);
+    number(p, "v_max_mm_s", &plan.v_max_mm_s);
+    number(p, "max_duration_s", &plan.max_duration_s);
+    number(p, "min_span_pct", &plan.min_span_pct);
+  }
+}
+
+void DaemonConfig::Validate() const {
+  if (db.empty())
+    throw std::invalid_argument("--db: empty (give a SQLite file path)");
+  if (!(port >= 0 && port <= 65535))
+    throw std::invalid_argument("--port " + std::to_string(port) +
+                                ": must be in 0..65535");
+  if (bind.empty()) throw std::invalid_argument("--bind: empty");
+  if (!(max_body_mb >= 1 && max_body_mb <= 1024))
+    throw std::invalid_argument("--max-body-mb " + std::to_string(max_body_mb) +
+                                ": must be in 1..1024");
+  if (!(threads >= 1 && threads <= 256))
+    throw std::invalid_argument("--threads " + std::to_string(threads) +
+                                ": must be in 1..256");
+  if (!(plan.fn_min_n > 0 && plan.fn_min_n < plan.fn_max_n))
+    throw std::invalid_argument(
+        "plan: fn_min_n must be > 0 and below fn_max_n");
+  if (!(plan.v_min_mm_s >= 0 && plan.v_min_mm_s < plan.v_max_mm_s))
+    throw std::invalid_argument(
+        "plan: v_min_mm_s must be >= 0 and below v_max_mm_s");
+  if (!(plan.max_duration_s > 0))
+    throw std::invalid_argument("plan: max_duration_s must be > 0");
+  if (!(plan.min_span_pct > 0 && plan.min_span_pct <= 100))
+    throw std::invalid_argument("plan: min_span_pct must be in (0, 100]");
+}
+
+Daemon::Daemon(DaemonConfig config) : config_(std::move(config)) {
+  config_.Validate();
+}
+
+Daemon::~Daemon() { Stop(); }
+
+int Daemon::Start() {
+  LibraryOptions lo;
+  lo.plan = config_.plan;
+  library_ = std::make_unique<FrictionLibrary>(OpenStore(config_.db), lo);
+  if (!config_.data_dir.empty() && config_.data_dir != "none") {
+    const int n = library_->LoadBundledData(config_.data_dir);
+    if (n > 0)
+      std::cerr << "frictiond: loaded " << n << " bundled dataset(s) from "
+                << config_.data_dir << "\n";
+  }
+  HttpOptions ho;
+  ho.max_body_bytes = static_cast<std::size_t>(config_.max_body_mb) << 20;
+  ho.threads = config_.threads;
+  http_ = std::make_unique<HttpServer>(ho);
+  RegisterCoreRoutes(*http_, *library_);
+  RegisterPaper000Routes(*http_, *library_);
+  RegisterLuGreFeature(*http_, *library_);
+  RegisterDiagnosisRoutes(*http_, *library_);
+  RegisterRecognitionRoutes(*http_, *library_);
+  return http_->Bind(config_.bind, config_.port);
+}
+
+void Daemon::Serve() { http_->Serve(); }
+
+void Daemon::Stop() {
+  if (http_) http_->Stop();
+}
+
+FrictionLibrary& Daemon::library() { return *library_; }
+HttpServer& Daemon::http() { return *http_; }
+
+}  // namespace frictiond

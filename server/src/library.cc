@@ -1,0 +1,526 @@
+#include "frictiond/server/library.h"
+
+#include <charconv>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "frictiond/estimators/stroke_csv.h"
+
+namespace frictiond {
+
+using nlohmann::json;
+
+bool IsValidId(const std::string& id) {
+  if (id.empty() || id.size() > 64 || id == "." || id == "..") return false;
+  for (char c : id) {
+    const bool ok = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') ||
+                    (c >= '0' && c <= '9') || c == '.' || c == '_' || c == '-';
+    if (!ok) return false;
+  }
+  return true;
+}
+
+void CheckId(const std::string& id, const std::string& field) {
+  if (!IsValidId(id)) {
+    std::string shown = id.substr(0, 80);
+    for (char& c : shown) {
+      if (static_cast<unsigned char>(c) < 0x20 ||
+          static_cast<unsigned char>(c) >= 0x7f)
+        c = '?';
+    }
+    throw RequestError(
+        400,
+        field,
+        field + " = '" + shown +
+            "' (must match [A-Za-z0-9._-]{1,64} and not be '.' or '..')");
+  }
+}
+
+double ParseNumberParam(const std::string& name, const std::string& value) {
+  double x = 0;
+  const char* b = value.data();
+  const char* e = value.data() + value.size();
+  auto [p, ec] = std::from_chars(b, e, x);
+  if (value.empty() || ec != std::errc() || p != e) {
+    throw RequestError(
+        400, name, name + " = '" + value.substr(0, 40) + "' (not a number)");
+  }
+  if (!std::isfinite(x))
+    throw RequestError(400, name, name + " = '" + value + "' (must be finite)");
+  return x;
+}
+
+std::optional<SlipLabelOptions> ParseLabelling(
+    const std::function<std::optional<std::string>(const std::string&)>& get,
+    const SlipLabelOptions& base) {
+  SlipLabelOptions o = base;
+  bool any = false;
+  auto take = [&](const char* name, double* field) {
+    if (auto v = get(name)) {
+      *field = ParseNumberParam(name, *v);
+      any = true;
+    }
+  };
+  take("slip_peak_mm_s", &o.peak_mm_s);
+  take("slip_floor_mm_s", &o.floor_mm_s);
+  take("median_window_s", &o.median_window_s);
+  take("max_fn_n", &o.max_fn_n);
+  take("max_v_mm_s", &o.max_v_mm_s);
+  if (!any) return std::nullopt;
+  std::string why;
+  if (!o.IsValid(&why))
+    throw RequestError(400, why.substr(0, why.find(' ')), why);
+  return o;
+}
+
+namespace {
+
+std::string Key(const std::string& material, const std::string& fingertip) {
+  return material + '\n' + fingertip;
+}
+
+}  // namespace
+
+FrictionLibrary::FrictionLibrary(std::unique_ptr<Store> store,
+                                 LibraryOptions options)
+    : store_(std::move(store)), options_(options) {}
+
+FrictionLibrary::~FrictionLibrary() = default;
+
+std::vector<Material> FrictionLibrary::ListMaterials() {
+  return store_->ListMaterials();
+}
+
+Material FrictionLibrary::GetMaterial(const std::string& id) {
+  CheckId(id, "id");
+  auto m = store_->GetMaterial(id);
+  if (!m) throw RequestError(404, "id", "unknown material '" + id + "'");
+  return *m;
+}
+
+bool FrictionLibrary::PutMaterial(const std::string& id,
+                                  const std::string& json_body) {
+  CheckId(id, "id");
+  json body = json::object();
+  if (!json_body.empty()) {
+    try {
+      body = json::parse(json_body);
+    } catch (const json::parse_error& e) {
+      throw RequestError(
+          400, "body", std::string("body: invalid JSON: ") + e.what());
+    }
+  }
+  if (!body.is_object())
+    throw RequestError(
+        400, "body", "body: expected a JSON object {name, description, tags}");
+  Material m;
+  m.id = id;
+  if (auto old = store_->GetMaterial(id)) m = *old;
+  for (auto it = body.begin(); it != body.end(); ++it) {
+    const std::string& k = it.key();
+    if (k == "name" || k == "description") {
+      if (!it->is_string())
+        throw RequestError(400, k, k + ": expected a string");
+      const std::string s = it->get<std::string>();
+      if (s.size() > (k == "name" ? 200u : 4000u)) {
+        throw RequestError(400,
+                           k,
+                           k + ": " + std::to_string(s.size()) +
+                               " characters (at most " +
+                               (k == "name" ? "200" : "4000") + ")");
+      }
+      (k == "name" ? m.name : m.description) = s;
+    } else if (k == "tags") {
+      if (!it->is_array())
+        throw RequestError(400, k, "tags: expected an array of strings");
+      if (it->size() > 64)
+        throw RequestError(
+            400,
+            k,
+            "tags: " + std::to_string(it->size()) + " tags (at most 64)");
+      std::vector<std::string> tags;
+      for (const auto& t : *it) {
+        if (!t.is_string())
+          throw RequestError(400, k, "tags: expected an array of strings");
+        if (t.get<std::string>().size() > 64)
+          throw RequestError(400, k, "tags: a tag longer than 64 characters");
+        tags.push_back(t.get<std::string>());
+      }
+      m.tags = tags;
+    } else {
+      throw RequestError(400,
+                         k,
+                         "body: unknown field '" + k.substr(0, 64) +
+                             "' (allowed: name, description, tags)");
+    }
+  }
+  if (m.name.empty()) m.name = id;
+  return store_->PutMaterial(m);
+}
+
+bool FrictionLibrary::DeleteMaterial(const std::string& id) {
+  CheckId(id, "id");
+  const bool deleted = store_->DeleteMaterial(id);
+  std::unique_lock lock(cache_mu_);
+  for (auto it = cache_.begin(); it != cache_.end();) {
+    it = it->first.rfind(id + '\n', 0) == 0 ? cache_.erase(it) : std::next(it);
+  }
+  return deleted;
+}
+
+std::shared_ptr<const CachedModel> FrictionLibrary::Decode(
+    const ModelRecord& r) const {
+  auto cm = std::make_shared<CachedModel>();
+  json j = json::parse(r.json);
+  cm->set = ModelSetFromJson(j);
+  cm->set.material = r.material;
+  cm->set.fingertip = r.fingertip;
+  cm->set.version = r.version;
+  cm->set.created_at = r.created_at;
+  json out = ModelSetToJson(cm->set);
+  out["reason"] = r.reason;
+  cm->json_text = out.dump();
+  return cm;
+}
+
+std::shared_ptr<const CachedModel> FrictionLibrary::FindModel(
+    const std::string& material, const std::string& fingertip) {
+  const std::string key = Key(material, fingertip);
+  {
+    std::shared_lock lock(cache_mu_);
+    auto it = cache_.find(key);
+    if (it != cache_.end()) return it->second;
+  }
+  auto record = store_->GetLatestModel(material, fingertip);
+  if (!record) return nullptr;
+  auto cm = Decode(*record);
+  std::unique_lock lock(cache_mu_);
+  auto [it, inserted] = cache_.emplace(key, cm);
+  if (!inserted && it->second->set.version < cm->set.version) it->second = cm;
+  return it->second;
+}
+
+std::shared_ptr<const CachedModel> FrictionLibrary::FindModelVersion(
+    const std::string& material, const std::string& fingertip, int version) {
+  auto record = store_->GetModel(material, fingertip, version);
+  return record ? Decode(*record) : nullptr;
+}
+
+json FrictionLibrary::MakeStrokePlan(const std::string& material,
+                                     const std::string& fingertip) const {
+  const StrokePlanOptions& p = options_.plan;
+  return json{{"material", material},
+              {"fingertip", fingertip},
+              {"fn_n", {p.fn_min_n, p.fn_max_n}},
+              {"v_mm_s", {p.v_min_mm_s, p.v_max_mm_s}},
+              {"max_duration_s", p.max_duration_s},
+              {"min_span_pct", p.min_span_pct},
+              {"instructions",
+               "slide the fingertip on the surface in repeated strokes with "
+               "rests between them, sweeping normal "
+               "force over fn_n and peak sliding speed over v_mm_s; then POST "
+               "the samples as a stroke CSV (t_s, "
+               "fn_n, ft_n, v_mm_s) to /v1/materials/" +
+                   material + "/strokes?fingertip=" + fingertip}};
+}
+
+json FrictionLibrary::RequestIdentification(const std::string& material,
+                                            const std::string& fingertip,
+                                            const std::string& requested_by) {
+  IdentificationJob job;
+  job.material = material;
+  job.fingertip = fingertip;
+  job.state = "requested";
+  job.plan_json = MakeStrokePlan(material, fingertip).dump();
+  job.requested_by = requested_by;
+  job.detail = "waiting for a test stroke";
+  const IdentificationJob j = store_->RequestIdentification(job);
+  return json{{"requested", true},
+              {"job_id", j.id},
+              {"state", j.state},
+              {"created_at", j.created_at},
+              {"stroke", json::parse(j.plan_json)}};
+}
+
+std::shared_ptr<const CachedModel> FrictionLibrary::RequireModel(
+    const std::string& material,
+    const std::string& fingertip,
+    const std::string& requested_by) {
+  CheckId(material, "id");
+  CheckId(fingertip, "fingertip");
+  if (auto m = FindModel(material, fingertip)) return m;
+  const bool known = store_->GetMaterial(material).has_value();
+  json extra = json{{"material", material},
+                    {"fingertip", fingertip},
+                    {"known_material", known}};
+  extra["identification"] =
+      RequestIdentification(material, fingertip, requested_by);
+  throw RequestError(404,
+                     "id",
+                     known ? "material '" + material +
+                                 "' has no friction model for fingertip '" +
+                                 fingertip +
+                                 "' yet: an identification was requested"
+                           : "unknown material '" + material +
+                                 "': an identification was requested",
+                     extra);
+}
+
+StrokeData FrictionLibrary::LoadStrokes(
+    const std::string& material,
+    const std::string& fingertip,
+    std::optional<SlipLabelOptions> labelling) {
+  if (!labelling) {
+    auto model = FindModel(material, fingertip);
+    labelling = model && model->set.stochastic
+                    ? model->set.stochastic->labelling
+                    : SlipLabelOptions{};
+  }
+  StrokeData all;
+  for (const StrokeRecord& info : store_->ListStrokes(material, fingertip)) {
+    auto s = store_->GetStroke(info.id);
+    if (!s) continue;
+    StrokeData d = ParseStrokeCsv(
+        s->csv, StrokeCsvOptions{options_.max_samples_per_upload, 64});
+    PrepareUpload(&d, *labelling);
+    all.Append(d);
+  }
+  return all;
+}
+
+void FrictionLibrary::PrepareUpload(StrokeData* data,
+                                    const SlipLabelOptions& labelling) {
+  // Labels, strokes and derived features are per upload: time gaps,
+  // dwell and distance restart with each upload.
+  EnsureLabels(data, labelling);
+  AddDerivedFeatures(data, labelling.gap_factor);
+}
+
+IngestResult FrictionLibrary::IngestStrokes(const std::string& material,
+                                            const std::string& csv,
+                                            const IngestOptions& options) {
+  CheckId(material, "id");
+  CheckId(options.fingertip, "fingertip");
+  if (options.robot.size() > 128)
+    throw RequestError(400, "robot", "robot: at most 128 characters");
+  // 1. Validate the upload completely before touching the store.
+  StrokeData upload;
+  try {
+    upload = ParseStrokeCsv(
+        csv, StrokeCsvOptions{options_.max_samples_per_upload, 64});
+  } catch (const StrokeCsvError& e) {
+    const int status =
+        e.field() == "body" && std::string(e.what()).find("samples (split") !=
+                                   std::string::npos
+            ? 413
+            : 400;
+    throw RequestError(status, e.field(), e.what(), json{{"line", e.line()}});
+  }
+  std::lock_guard<std::mutex> lock(ingest_mu_);
+  // 2. Labelling: explicit, else the pair's previous one, else defaults.
+  SlipLabelOptions labelling;
+  auto previous = FindModel(material, options.fingertip);
+  if (options.labelling) {
+    labelling = *options.labelling;
+  } else if (previous && previous->set.stochastic) {
+    labelling = previous->set.stochastic->labelling;
+  }
+  // 3. Refit on all strokes of the pair plus this one.
+  StrokeData all = LoadStrokes(material, options.fingertip, labelling);
+  const std::size_t n_new = upload.size();
+  PrepareUpload(&upload, labelling);
+  if (all.empty()) {
+    all = upload;  // first upload of the pair: no merge needed
+  } else {
+    all.Append(upload);
+  }
+  StochasticFitOptions fit_options;
+  fit_options.labelling = labelling;
+  if (previous && previous->set.stochastic) {
+    // Keep an extended model's terms when they can be computed from the data.
+    std::vector<std::string> terms;
+    bool computable = true;
+    for (const Term& t : previous->set.stochastic->mu.terms) {
+      if (t.kind != TermKind::kIntercept && !all.Column(t.input))
+        computable = false;
+      terms.push_back(t.Name());
+    }
+    if (computable) fit_options.terms = terms;
+  }
+  StochasticFit fit = FitStochasticModel(all, fit_options);
+  if (fit.status != FitStatus::kOk && fit.status != FitStatus::kPartial) {
+    throw RequestError(
+        422,
+        "v_mm_s",
+        "stroke accepted as CSV but no model can be identified: " + fit.why,
+        json{{"fit_status", ToString(fit.status)}});
+  }
+  // 4. One transaction: stroke + model version.
+  ModelSet set;
+  set.material = material;
+  set.fingertip = options.fingertip;
+  set.stochastic = fit.model;
+  if (previous) {
+    for (auto it = previous->set.other.begin(); it != previous->set.other.end();
+         ++it) {
+      if (it.key() != "reason") set.other[it.key()] = *it;
+    }
+  }
+  std::string family_notes;
+  for (const auto& [family, fitter] : fitters_) {
+    std::string note;
+    json j = fitter(all, upload, previous.get(), &note);
+    if (!j.is_null()) set.other[family] = j;
+    if (!note.empty()) {
+      family_notes += (family_notes.empty() ? "" : "; ") + family + ": " + note;
+    }
+  }
+  StrokeRecord stroke;
+  stroke.material = material;
+  stroke.fingertip = options.fingertip;
+  stroke.robot = options.robot;
+  stroke.samples = static_cast<std::int64_t>(n_new);
+  stroke.csv = csv;
+  ModelRecord record;
+  record.material = material;
+  record.fingertip = options.fingertip;
+  record.reason = "upload";
+  json doc = ModelSetToJson(set);
+  doc.erase("version");
+  doc.erase("created_at");
+  record.json = doc.dump();
+  const UploadCommit commit = store_->CommitUpload(stroke, record);
+  Invalidate(material, options.fingertip);
+  IngestResult out;
+  out.stroke_id = commit.stroke_id;
+  out.version = commit.version;
+  out.material_created = commit.material_created;
+  out.samples = n_new;
+  out.model = FindModel(material, options.fingertip);
+  out.fit_status = ToString(fit.status);
+  out.fit_note = fit.why;
+  if (!family_notes.empty())
+    out.fit_note += (out.fit_note.empty() ? "" : "; ") + family_notes;
+  Notify(out.model);
+  return out;
+}
+
+std::shared_ptr<const CachedModel> FrictionLibrary::AddModelVersion(
+    const std::string& material,
+    const std::string& fingertip,
+    const StochasticFrictionModel& model,
+    const std::string& reason,
+    const json& extra_families) {
+  std::lock_guard<std::mutex> lock(ingest_mu_);
+  ModelSet set;
+  set.material = material;
+  set.fingertip = fingertip;
+  set.stochastic = model;
+  if (auto previous = FindModel(material, fingertip))
+    set.other = previous->set.other;
+  for (auto it = extra_families.begin(); it != extra_families.end(); ++it)
+    set.other[it.key()] = *it;
+  ModelRecord record;
+  record.material = material;
+  record.fingertip = fingertip;
+  record.reason = reason;
+  json doc = ModelSetToJson(set);
+  doc.erase("version");
+  doc.erase("created_at");
+  record.json = doc.dump();
+  store_->AddModelVersion(record);
+  Invalidate(material, fingertip);
+  auto m = FindModel(material, fingertip);
+  Notify(m);
+  return m;
+}
+
+void FrictionLibrary::Invalidate(const std::string& material,
+                                 const std::string& fingertip) {
+  std::unique_lock lock(cache_mu_);
+  cache_.erase(Key(material, fingertip));
+}
+
+void FrictionLibrary::InvalidateCached(const std::string& material,
+                                       const std::string& fingertip) {
+  Invalidate(material, fingertip);
+}
+
+void FrictionLibrary::InvalidateAllCached() {
+  std::unique_lock lock(cache_mu_);
+  cache_.clear();
+}
+
+void FrictionLibrary::AddFamilyFitter(const std::string& family,
+                                      FamilyFitter fitter) {
+  fitters_.emplace_back(family, std::move(fitter));
+}
+
+void FrictionLibrary::AddModelListener(ModelListener listener) {
+  std::lock_guard<std::mutex> lock(listeners_mu_);
+  listeners_.push_back(std::move(listener));
+}
+
+void FrictionLibrary::Notify(const std::shared_ptr<const CachedModel>& model) {
+  if (!model) return;
+  std::vector<ModelListener> copy;
+  {
+    std::lock_guard<std::mutex> lock(listeners_mu_);
+    copy = listeners_;
+  }
+  for (auto& l : copy) l(*model);
+}
+
+int FrictionLibrary::LoadBundledData(const std::string& dir) {
+  if (!store_->ListMaterials().empty()) return 0;
+  const std::filesystem::path root(dir);
+  const std::filesystem::path manifest = root / "datasets.json";
+  std::ifstream in(manifest);
+  if (!in)
+    throw std::runtime_error("--data " + dir + ": no datasets.json manifest");
+  json m;
+  try {
+    m = json::parse(in);
+  } catch (const json::parse_error& e) {
+    throw std::runtime_error(manifest.string() + ": invalid JSON: " + e.what());
+  }
+  int loaded = 0;
+  for (const json& d : m.at("datasets")) {
+    const std::string id = d.at("material").get<std::string>();
+    const std::filesystem::path csv_path =
+        root / d.at("csv").get<std::string>();
+    std::ifstream f(csv_path, std::ios::binary);
+    if (!f)
+      throw std::runtime_error(manifest.string() + ": cannot read " +
+                               csv_path.string());
+    std::stringstream ss;
+    ss << f.rdbuf();
+    IngestOptions options;
+    options.fingertip = d.value("fingertip", "default");
+    options.robot = "bundled:" + d.at("csv").get<std::string>();
+    SlipLabelOptions labelling;
+    if (d.contains("labelling")) {
+      const json& l = d["labelling"];
+      labelling.peak_mm_s = l.value("slip_peak_mm_s", labelling.peak_mm_s);
+      labelling.floor_mm_s = l.value("slip_floor_mm_s", labelling.floor_mm_s);
+      labelling.median_window_s =
+          l.value("median_window_s", labelling.median_window_s);
+    }
+    options.labelling = labelling;
+    try {
+      IngestStrokes(id, ss.str(), options);
+    } catch (const RequestError& e) {
+      throw std::runtime_error(csv_path.string() + ": " + e.what());
+    }
+    json body = {{"name", d.value("name", id)},
+                 {"description", d.value("description", "")},
+                 {"tags", d.value("tags", std::vector<std::string>{})}};
+    PutMaterial(id, body.dump());
+    ++loaded;
+  }
+  return loaded;
+}
+
+}  // namespace frictiond

@@ -1,0 +1,387 @@
+#include <cmath>
+
+#include "frictiond/server/routes.h"
+
+namespace frictiond {
+
+using nlohmann::json;
+
+json MaterialToJson(const Material& m) {
+  return json{{"id", m.id},
+              {"name", m.name},
+              {"description", m.description},
+              {"tags", m.tags},
+              {"created_at", m.created_at},
+              {"updated_at", m.updated_at}};
+}
+
+std::string FingertipParam(const HttpRequest& req) {
+  const std::string f = req.QueryOr("fingertip", "default");
+  CheckId(f, "fingertip");
+  return f;
+}
+
+namespace {
+
+std::string Requester(const HttpRequest& req) {
+  std::string who = req.QueryOr("robot", req.Header("X-Robot-Id"));
+  if (who.empty()) who = "http:" + req.remote_addr;
+  return who.substr(0, 128);
+}
+
+const StochasticFrictionModel& Stochastic(const CachedModel& m) {
+  if (!m.set.stochastic) {
+    throw RequestError(422,
+                       "model",
+                       "model version " + std::to_string(m.set.version) +
+                           " has no stochastic model");
+  }
+  return *m.set.stochastic;
+}
+
+std::shared_ptr<const CachedModel> ModelFor(FrictionLibrary& lib,
+                                            const HttpRequest& req) {
+  const std::string& id = req.params.at(0);
+  const std::string fingertip = FingertipParam(req);
+  if (auto v = req.Query("version")) {
+    CheckId(id, "id");
+    const double x = ParseNumberParam("version", *v);
+    if (!(x >= 1 && x == std::floor(x) && x < 1e9)) {
+      throw RequestError(400,
+                         "version",
+                         "version = '" + *v + "' (must be a positive integer)");
+    }
+    auto m = lib.FindModelVersion(id, fingertip, static_cast<int>(x));
+    if (!m)
+      throw RequestError(
+          404, "version", "material '" + id + "' has no model version " + *v);
+    return m;
+  }
+  return lib.RequireModel(id, fingertip, Requester(req));
+}
+
+bool IsCsvContentType(const std::string& ct) {
+  const std::string base = ct.substr(0, ct.find(';'));
+  return base.empty() || base == "text/csv" || base == "application/csv" ||
+         base == "text/plain";
+}
+
+}  // namespace
+
+void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
+  http.Route("GET", "/healthz", [&lib](const HttpRequest&) {
+    return HttpResponse::Json(
+        200, {{"status", "ok"}, {"backend", lib.store().BackendName()}});
+  });
+  http.Route("GET", "/metrics", [&http](const HttpRequest&) {
+    return HttpResponse{
+        200, "text/plain; version=0.0.4", http.metrics().Render(), {}};
+  });
+
+  // --- materials
+  // ---------------------------------------------------------------
+  http.Route("GET", "/v1/materials", [&lib](const HttpRequest& req) {
+    const std::string q = req.QueryOr("q", "");
+    json list = json::array();
+    for (const Material& m : lib.ListMaterials()) {
+      if (!q.empty() && m.id.find(q) == std::string::npos &&
+          m.name.find(q) == std::string::npos)
+        continue;
+      json j = MaterialToJson(m);
+      auto model = lib.FindModel(m.id, "default");
+      j["latest_version"] = model ? json(model->set.version) : json(nullptr);
+      list.push_back(j);
+    }
+    return HttpResponse::Json(200, {{"materials", list}});
+  });
+  http.Route("GET", "/v1/materials/{id}", [&lib](const HttpRequest& req) {
+    const std::string& id = req.params[0];
+    CheckId(id, "id");
+    auto m = lib.store().GetMaterial(id);
+    if (!m) {
+      json extra = {{"material", id}, {"known_material", false}};
+      extra["identification"] =
+          lib.RequestIdentification(id, "default", Requester(req));
+      throw RequestError(
+          404,
+          "id",
+          "unknown material '" + id + "': an identification was requested",
+          extra);
+    }
+    json j = MaterialToJson(*m);
+    json models = json::array();
+    for (const Fingertip& f : lib.store().ListFingertips()) {
+      const auto versions = lib.store().ListModels(id, f.id);
+      if (!versions.empty()) {
+        models.push_back({{"fingertip", f.id},
+                          {"latest_version", versions.back().version},
+                          {"versions", versions.size()}});
+      }
+    }
+    j["models"] = models;
+    return HttpResponse::Json(200, j);
+  });
+  http.Route("PUT", "/v1/materials/{id}", [&lib](const HttpRequest& req) {
+    const std::string& id = req.params[0];
+    const bool created = lib.PutMaterial(id, req.body);
+    return HttpResponse::Json(created ? 201 : 200,
+                              MaterialToJson(lib.GetMaterial(id)));
+  });
+  http.Route("DELETE", "/v1/materials/{id}", [&lib](const HttpRequest& req) {
+    const std::string& id = req.params[0];
+    if (!lib.DeleteMaterial(id))
+      throw RequestError(404, "id", "unknown material '" + id + "'");
+    return HttpResponse::Json(200, {{"deleted", id}});
+  });
+
+  // --- fingertips
+  // --------------------------------------------------------------
+  http.Route("GET", "/v1/fingertips", [&lib](const HttpRequest&) {
+    json list = json::array();
+    for (const Fingertip& f : lib.store().ListFingertips()) {
+      list.push_back({{"id", f.id},
+                      {"name", f.name},
+                      {"description", f.description},
+                      {"created_at", f.created_at}});
+    }
+    return HttpResponse::Json(200, {{"fingertips", list}});
+  });
+  http.Route("PUT", "/v1/fingertips/{id}", [&lib](const HttpRequest& req) {
+    const std::string& id = req.params[0];
+    CheckId(id, "id");
+    json body = json::object();
+    if (!req.body.empty()) {
+      try {
+        body = json::parse(req.body);
+      } catch (const json::parse_error& e) {
+        throw RequestError(
+            400, "body", std::string("body: invalid JSON: ") + e.what());
+      }
+    }
+    if (!body.is_object())
+      throw RequestError(
+          400, "body", "body: expected a JSON object {name, description}");
+    Fingertip f{id, id, "", ""};
+    for (auto it = body.begin(); it != body.end(); ++it) {
+      if (it.key() != "name" && it.key() != "description")
+        throw RequestError(400,
+                           it.key(),
+                           "body: unknown field '" + it.key().substr(0, 64) +
+                               "' (allowed: name, description)");
+      if (!it->is_string())
+        throw RequestError(400, it.key(), it.key() + ": expected a string");
+      (it.key() == "name" ? f.name : f.description) =
+          it->get<std::string>().substr(0, 4000);
+    }
+    const bool created = lib.store().PutFingertip(f);
+    return HttpResponse::Json(
+        created ? 201 : 200,
+        {{"id", f.id}, {"name", f.name}, {"description", f.description}});
+  });
+
+  // --- models
+  // ------------------------------------------------------------------
+  http.Route("GET", "/v1/materials/{id}/model", [&lib](const HttpRequest& req) {
+    return HttpResponse::RawJson(200, ModelFor(lib, req)->json_text);
+  });
+  http.Route(
+      "GET", "/v1/materials/{id}/models", [&lib](const HttpRequest& req) {
+        const std::string& id = req.params[0];
+        CheckId(id, "id");
+        const std::string fingertip = FingertipParam(req);
+        json list = json::array();
+        for (const ModelRecord& r : lib.store().ListModels(id, fingertip)) {
+          list.push_back({{"version", r.version},
+                          {"created_at", r.created_at},
+                          {"reason", r.reason},
+                          {"stroke_id", r.stroke_id}});
+        }
+        if (list.empty() && !lib.store().GetMaterial(id))
+          throw RequestError(404, "id", "unknown material '" + id + "'");
+        return HttpResponse::Json(
+            200,
+            {{"material", id}, {"fingertip", fingertip}, {"versions", list}});
+      });
+
+  // --- strokes
+  // -----------------------------------------------------------------
+  http.Route(
+      "POST", "/v1/materials/{id}/strokes", [&lib](const HttpRequest& req) {
+        const std::string& id = req.params[0];
+        CheckId(id, "id");
+        const std::string ct = req.Header("Content-Type");
+        if (!IsCsvContentType(ct)) {
+          throw RequestError(
+              415,
+              "Content-Type",
+              "Content-Type '" + ct.substr(0, 64) + "' (must be text/csv)");
+        }
+        IngestOptions options;
+        options.fingertip = FingertipParam(req);
+        options.robot = req.QueryOr("robot", req.Header("X-Robot-Id"));
+        options.labelling = ParseLabelling(
+            [&req](const std::string& n) { return req.Query(n); },
+            SlipLabelOptions{});
+        const IngestResult r = lib.IngestStrokes(id, req.body, options);
+        const StochasticFrictionModel& m = *r.model->set.stochastic;
+        json coef = json::object();
+        for (std::size_t k = 0; k < m.mu.terms.size(); ++k)
+          coef[m.mu.terms[k].Name()] = m.mu.beta(k);
+        json body = {{"material", id},
+                     {"fingertip", options.fingertip},
+                     {"version", r.version},
+                     {"stroke_id", r.stroke_id},
+                     {"samples", r.samples},
+                     {"material_created", r.material_created},
+                     {"fit_status", r.fit_status},
+                     {"coefficients", coef},
+                     {"sigma_eps", m.mu.sigma_eps},
+                     {"r2", m.mu.r2},
+                     {"slip_samples", m.samples_slip}};
+        if (!r.fit_note.empty()) body["note"] = r.fit_note;
+        HttpResponse out = HttpResponse::Json(201, body);
+        out.headers.emplace("Location",
+                            "/v1/materials/" + id +
+                                "/model?version=" + std::to_string(r.version) +
+                                "&fingertip=" + options.fingertip);
+        return out;
+      });
+  http.Route(
+      "GET", "/v1/materials/{id}/strokes", [&lib](const HttpRequest& req) {
+        const std::string& id = req.params[0];
+        CheckId(id, "id");
+        const std::string fingertip = FingertipParam(req);
+        json list = json::array();
+        for (const StrokeRecord& s : lib.store().ListStrokes(id, fingertip)) {
+          list.push_back({{"id", s.id},
+                          {"robot", s.robot},
+                          {"received_at", s.received_at},
+                          {"samples", s.samples}});
+        }
+        return HttpResponse::Json(
+            200,
+            {{"material", id}, {"fingertip", fingertip}, {"strokes", list}});
+      });
+
+  // --- evaluation
+  // --------------------------------------------------------------
+  http.Route(
+      "GET", "/v1/materials/{id}/predict", [&lib](const HttpRequest& req) {
+        const double fn = req.RequireNumber("fn_n");
+        const double v = req.RequireNumber("v_mm_s");
+        if (!(fn > 0))
+          throw RequestError(
+              400, "fn_n", "fn_n = " + std::to_string(fn) + " (must be > 0)");
+        if (!(v >= 0))
+          throw RequestError(
+              400,
+              "v_mm_s",
+              "v_mm_s = " + std::to_string(v) + " (must be >= 0)");
+        auto model = ModelFor(lib, req);
+        const StochasticFrictionModel& m = Stochastic(*model);
+        InputValues inputs{{"fn_n", fn}, {"v_mm_s", v}};
+        for (const auto& [k, val] : req.query) {
+          if (k == "fn_n" || k == "v_mm_s" || k == "fingertip" ||
+              k == "version" || k == "robot")
+            continue;
+          if (m.inputs.count(k) == 0) {
+            throw RequestError(400,
+                               k,
+                               "query parameter " + k.substr(0, 64) +
+                                   " is not an input of this model");
+          }
+          inputs.emplace_back(k, ParseNumberParam(k, val));
+        }
+        const MuPrediction p = PredictMu(m, inputs);
+        return HttpResponse::Json(
+            200,
+            {{"material", model->set.material},
+             {"version", model->set.version},
+             {"mu", p.mu},
+             {"sigma", p.sigma},
+             {"interval95", {p.lo95, p.hi95}},
+             {"extrapolated", p.extrapolated},
+             {"extrapolated_inputs", p.extrapolated_inputs},
+             {"mu_coulomb", m.mu_coulomb}});
+      });
+  http.Route(
+      "GET",
+      "/v1/materials/{id}/slip-likelihood",
+      [&lib](const HttpRequest& req) {
+        const double fn = req.RequireNumber("fn_n");
+        const double ft = req.RequireNumber("ft_n");
+        if (!(fn > 0))
+          throw RequestError(
+              400, "fn_n", "fn_n = " + std::to_string(fn) + " (must be > 0)");
+        if (!(ft >= 0))
+          throw RequestError(
+              400, "ft_n", "ft_n = " + std::to_string(ft) + " (must be >= 0)");
+        auto model = ModelFor(lib, req);
+        const StochasticFrictionModel& m = Stochastic(*model);
+        const double L = CalcSlipLikelihood(m, fn, ft);
+        const double r = ft / fn;
+        return HttpResponse::Json(
+            200,
+            {{"material", model->set.material},
+             {"version", model->set.version},
+             {"likelihood", L},
+             {"ratio", r},
+             {"method", m.likelihood.valid ? "sigmoid" : "eps_cdf"},
+             {"coulomb_slips", r >= m.mu_coulomb}});
+      });
+  http.Route(
+      "GET", "/v1/materials/{id}/grip-force", [&lib](const HttpRequest& req) {
+        const double load = req.RequireNumber("load_n");
+        const double risk = req.RequireNumber("risk");
+        if (!(load > 0))
+          throw RequestError(
+              400,
+              "load_n",
+              "load_n = " + std::to_string(load) + " (must be > 0)");
+        if (!(risk > 0 && risk < 1))
+          throw RequestError(
+              400,
+              "risk",
+              "risk = " + std::to_string(risk) + " (must be in (0, 1))");
+        auto model = ModelFor(lib, req);
+        const GripForce g = CalcGripForce(Stochastic(*model), load, risk);
+        if (!g.attainable) {
+          throw RequestError(
+              422,
+              "load_n",
+              "no grip force holds load_n = " + std::to_string(load) +
+                  " N at risk " + std::to_string(risk) + ": " + g.why);
+        }
+        return HttpResponse::Json(200,
+                                  {{"material", model->set.material},
+                                   {"version", model->set.version},
+                                   {"fn_n", g.fn_n},
+                                   {"mu_used", g.mu_used},
+                                   {"load_n", load},
+                                   {"risk", risk},
+                                   {"extrapolated", g.extrapolated}});
+      });
+
+  // --- identification jobs
+  // ----------------------------------------------------------
+  http.Route("GET", "/v1/identifications", [&lib](const HttpRequest& req) {
+    const bool open_only = req.QueryOr("open", "0") == "1";
+    json list = json::array();
+    for (const IdentificationJob& j : lib.store().ListJobs(open_only)) {
+      json plan =
+          json::parse(j.plan_json.empty() ? "{}" : j.plan_json, nullptr, false);
+      list.push_back({{"id", j.id},
+                      {"material", j.material},
+                      {"fingertip", j.fingertip},
+                      {"state", j.state},
+                      {"detail", j.detail},
+                      {"requested_by", j.requested_by},
+                      {"created_at", j.created_at},
+                      {"updated_at", j.updated_at},
+                      {"stroke", plan}});
+    }
+    return HttpResponse::Json(200, {{"identifications", list}});
+  });
+}
+
+}  // namespace frictiond

@@ -1,0 +1,83 @@
+// Model diagnosis over HTTP: run `diagnose` on a material's stored strokes
+// and, when asked, store the extended model as a new version that is served
+// like any other (issue "model diagnosis", item 4).
+#include "frictiond/estimators/diagnosis.h"
+#include "frictiond/proto/diagnosis_json.h"
+#include "frictiond/server/routes.h"
+
+namespace frictiond {
+
+using nlohmann::json;
+
+void RegisterDiagnosisRoutes(HttpServer& http, FrictionLibrary& lib) {
+  http.Route(
+      "POST", "/v1/materials/{id}/diagnose", [&lib](const HttpRequest& req) {
+        const std::string& id = req.params[0];
+        CheckId(id, "id");
+        const std::string fingertip = FingertipParam(req);
+        const std::string store = req.QueryOr("store", "0");
+        if (store != "0" && store != "1") {
+          throw RequestError(
+              400,
+              "store",
+              "store = '" + store.substr(0, 16) + "' (must be 0 or 1)");
+        }
+        auto model = lib.RequireModel(id, fingertip, "diagnose");
+        DiagnosisOptions options;
+        if (model->set.stochastic)
+          options.labelling = model->set.stochastic->labelling;
+        if (auto seed = req.Query("seed")) {
+          const double s = ParseNumberParam("seed", *seed);
+          if (!(s >= 0 && s < 1e15))
+            throw RequestError(
+                400, "seed", "seed must be a non-negative integer");
+          options.seed = static_cast<std::uint64_t>(s);
+        }
+        const StrokeData data =
+            lib.LoadStrokes(id, fingertip, options.labelling);
+        const DiagnosisResult result = Diagnose(data, options);
+        json out = {
+            {"material", id},
+            {"fingertip", fingertip},
+            {"diagnosed_version", model->set.version},
+            {"diagnosis",
+             DiagnosisToJson(result,
+                             options,
+                             "",
+                             DiagnosisJsonOptions{true, false, false})}};
+        if (result.status != DiagnosisStatus::kOk) {
+          throw RequestError(
+              422, "strokes", "cannot diagnose: " + result.why, out);
+        }
+        if (store == "1" && !result.findings.empty()) {
+          StochasticFitOptions fit_options;
+          fit_options.labelling = options.labelling;
+          fit_options.terms = result.extended.terms;
+          const StochasticFit fit = FitStochasticModel(data, fit_options);
+          if (fit.status != FitStatus::kOk &&
+              fit.status != FitStatus::kPartial) {
+            throw RequestError(422,
+                               "strokes",
+                               "extended model could not be fitted: " + fit.why,
+                               out);
+          }
+          json summary = {{"baseline", result.baseline.model},
+                          {"baseline_cv_mae", result.baseline.cv_mae},
+                          {"extended", result.extended.model},
+                          {"extended_cv_mae", result.extended.cv_mae},
+                          {"gain_pct", result.gain_pct},
+                          {"causes", json::array()}};
+          for (const Finding& f : result.findings)
+            summary["causes"].push_back(f.cause);
+          auto stored = lib.AddModelVersion(id,
+                                            fingertip,
+                                            fit.model,
+                                            "diagnosis",
+                                            json{{"diagnosis", summary}});
+          out["stored_version"] = stored->set.version;
+        }
+        return HttpResponse::Json(200, out);
+      });
+}
+
+}  // namespace frictiond

@@ -1,0 +1,161 @@
+#include "frictiond/server/library.h"
+
+#include <gtest/gtest.h>
+
+#include "frictiond/estimators/stroke_csv.h"
+#include "frictiond/server/http_server.h"
+#include "frictiond/server/routes.h"
+#include "frictiond/testing/stroke_simulator.h"
+
+namespace frictiond {
+namespace {
+
+using nlohmann::json;
+
+std::string SimulatedCsv(std::uint64_t seed, int strokes = 8) {
+  testing::SimulationSpec spec;
+  spec.strokes = strokes;
+  return FormatStrokeCsv(testing::SimulateStrokes(spec, seed));
+}
+
+class LibraryTest : public ::testing::Test {
+ protected:
+  LibraryTest() : lib_(OpenStore(":memory:")) {
+    RegisterCoreRoutes(http_, lib_);
+  }
+  HttpResponse Get(const std::string& path,
+                   std::multimap<std::string, std::string> query = {}) {
+    HttpRequest r;
+    r.method = "GET";
+    r.path = path;
+    r.query = std::move(query);
+    return http_.Dispatch(r);
+  }
+  FrictionLibrary lib_;
+  HttpServer http_;
+};
+
+TEST_F(LibraryTest, RefitAddsVersionsAndCacheServesNewest) {
+  const IngestResult a = lib_.IngestStrokes("felt", SimulatedCsv(1), {});
+  EXPECT_EQ(a.version, 1);
+  EXPECT_TRUE(a.material_created);
+  ASSERT_TRUE(lib_.FindModel("felt", "default"));
+  const IngestResult b = lib_.IngestStrokes("felt", SimulatedCsv(2), {});
+  EXPECT_EQ(b.version, 2);
+  EXPECT_EQ(lib_.FindModel("felt", "default")->set.version, 2);
+  // The refit uses both uploads: more slipping samples than either alone.
+  EXPECT_GT(b.model->set.stochastic->samples_slip,
+            a.model->set.stochastic->samples_slip);
+  EXPECT_EQ(lib_.FindModelVersion("felt", "default", 1)->set.version, 1);
+  const json served = json::parse(Get("/v1/materials/felt/model").body);
+  EXPECT_EQ(served["version"], 2);
+  EXPECT_EQ(served["material"], "felt");
+  EXPECT_TRUE(served["stochastic"]["coefficients"].contains("fn_n"));
+}
+
+TEST_F(LibraryTest, LabellingOfAnUploadIsReusedByLaterUploads) {
+  IngestOptions o;
+  SlipLabelOptions l;
+  l.peak_mm_s = 12.0;
+  l.floor_mm_s = 6.0;
+  o.labelling = l;
+  lib_.IngestStrokes("felt", SimulatedCsv(3), o);
+  const IngestResult r = lib_.IngestStrokes("felt", SimulatedCsv(4), {});
+  EXPECT_DOUBLE_EQ(r.model->set.stochastic->labelling.peak_mm_s, 12.0);
+  EXPECT_DOUBLE_EQ(r.model->set.stochastic->labelling.floor_mm_s, 6.0);
+}
+
+TEST_F(LibraryTest, NoSlipIsUnprocessableAndStoresNothing) {
+  const std::string csv =
+      "t_s,fn_n,ft_n,v_mm_s\n0,1,0.2,0\n0.01,1,0.3,0\n0.02,1,0.4,0.5\n";
+  try {
+    lib_.IngestStrokes("glass", csv, {});
+    FAIL() << "accepted a stroke without slip";
+  } catch (const RequestError& e) {
+    EXPECT_EQ(e.status(), 422);
+    EXPECT_NE(std::string(e.what()).find("slipping samples"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_FALSE(lib_.store().GetMaterial("glass"));
+  EXPECT_TRUE(lib_.store().ListStrokes("glass", "default").empty());
+}
+
+TEST_F(LibraryTest, BadCsvNamesLineAndFieldAndStoresNothing) {
+  try {
+    lib_.IngestStrokes(
+        "felt", "t_s,fn_n,ft_n,v_mm_s\n0,1,1,0\n0.1,-2,1,0\n", {});
+    FAIL();
+  } catch (const RequestError& e) {
+    EXPECT_EQ(e.status(), 400);
+    EXPECT_EQ(e.field(), "fn_n");
+    EXPECT_EQ(e.extra()["line"], 3);
+  }
+  EXPECT_TRUE(lib_.ListMaterials().empty());
+}
+
+TEST_F(LibraryTest, UnknownMaterialRecordsOneIdentificationRequest) {
+  const HttpResponse r1 = Get("/v1/materials/canvas/model");
+  const HttpResponse r2 =
+      Get("/v1/materials/canvas/predict", {{"fn_n", "1"}, {"v_mm_s", "10"}});
+  EXPECT_EQ(r1.status, 404);
+  EXPECT_EQ(r2.status, 404);
+  const json j = json::parse(r1.body);
+  EXPECT_TRUE(j["identification"]["requested"].get<bool>());
+  EXPECT_EQ(j["identification"]["stroke"]["fn_n"].size(), 2u);
+  EXPECT_EQ(json::parse(r2.body)["identification"]["job_id"],
+            j["identification"]["job_id"]);
+  EXPECT_EQ(lib_.store().ListJobs(true).size(), 1u);
+  // The requested stroke arrives: the job is fitted.
+  lib_.IngestStrokes("canvas", SimulatedCsv(5), {});
+  EXPECT_TRUE(lib_.store().ListJobs(true).empty());
+  EXPECT_EQ(Get("/v1/materials/canvas/model").status, 200);
+}
+
+TEST_F(LibraryTest, FamilyFittersAndListenersRun) {
+  int notified = 0;
+  lib_.AddModelListener(
+      [&](const CachedModel& m) { notified += m.set.version; });
+  lib_.AddFamilyFitter("demo",
+                       [](const StrokeData& all,
+                          const StrokeData& upload,
+                          const CachedModel* previous,
+                          std::string* note) -> json {
+                         *note = "saw " + std::to_string(upload.size());
+                         return json{{"samples", all.size()},
+                                     {"had_previous", previous != nullptr}};
+                       });
+  lib_.IngestStrokes("felt", SimulatedCsv(6, 3), {});
+  const IngestResult r = lib_.IngestStrokes("felt", SimulatedCsv(7, 3), {});
+  EXPECT_EQ(notified, 1 + 2);
+  EXPECT_TRUE(r.model->set.other["demo"]["had_previous"].get<bool>());
+  EXPECT_NE(r.fit_note.find("demo: saw"), std::string::npos) << r.fit_note;
+}
+
+TEST_F(LibraryTest, QueryValidationNamesTheParameter) {
+  lib_.IngestStrokes("felt", SimulatedCsv(8), {});
+  auto detail = [&](std::multimap<std::string, std::string> q,
+                    const std::string& route) {
+    const HttpResponse r = Get("/v1/materials/felt/" + route, std::move(q));
+    EXPECT_EQ(r.status, 400) << r.body;
+    return json::parse(r.body)["detail"].get<std::string>();
+  };
+  EXPECT_NE(detail({{"fn_n", "abc"}, {"v_mm_s", "1"}}, "predict").find("fn_n"),
+            std::string::npos);
+  EXPECT_NE(detail({{"fn_n", "1"}}, "predict").find("v_mm_s is required"),
+            std::string::npos);
+  EXPECT_NE(
+      detail({{"fn_n", "-1"}, {"v_mm_s", "1"}}, "predict").find("must be > 0"),
+      std::string::npos);
+  EXPECT_NE(detail({{"load_n", "1"}, {"risk", "2"}}, "grip-force").find("risk"),
+            std::string::npos);
+  EXPECT_NE(
+      detail({{"fn_n", "1"}, {"v_mm_s", "1"}, {"temp_c", "20"}}, "predict")
+          .find("not an input"),
+      std::string::npos);
+  const HttpResponse bad_id = Get("/v1/materials/a;drop/model");
+  EXPECT_EQ(bad_id.status, 400);
+  EXPECT_EQ(json::parse(bad_id.body)["field"], "id");
+}
+
+}  // namespace
+}  // namespace frictiond
