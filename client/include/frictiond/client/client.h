@@ -1,0 +1,114 @@
+#pragma once
+/// @file
+/// C++ client of frictiond for robots: fetch a material's model once over
+/// HTTP, then evaluate it locally in the control loop (PredictMu,
+/// CalcSlipLikelihood, CalcGripForce of frictiond/estimators) without
+/// further network traffic.
+///
+/// @code
+///   frictiond::FrictionClient client({"http://127.0.0.1:8080"});
+///   frictiond::ModelSet m = client.FetchModel("felt");          // one request
+///   const auto& s = *m.stochastic;
+///   double p = frictiond::CalcSlipLikelihood(s, fn_n, ft_n);     // ~ns, no
+///   I/O
+/// @endcode
+
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "frictiond/estimators/stochastic_model.h"
+#include "frictiond/proto/model_json.h"
+
+namespace frictiond {
+
+/// The daemon answered with an error status, or could not be reached
+/// (status 0). body() holds the daemon's JSON error when there was one
+/// (for an unknown material: the identification request and stroke plan).
+class ClientError : public std::runtime_error {
+ public:
+  ClientError(int status,
+              const std::string& message,
+              nlohmann::json body = nullptr)
+      : std::runtime_error(message), status_(status), body_(std::move(body)) {}
+  int status() const { return status_; }
+  const nlohmann::json& body() const { return body_; }
+
+ private:
+  int status_;
+  nlohmann::json body_;
+};
+
+/// Client options.
+struct ClientOptions {
+  std::string base_url = "http://127.0.0.1:8080";  ///< daemon URL (http only)
+  std::string fingertip = "default";  ///< default fingertip of requests
+  std::string robot;                  ///< sent as X-Robot-Id (may be empty)
+  double timeout_s = 5.0;             ///< connect/read timeout
+};
+
+/// Summary of a material as listed by the daemon.
+struct MaterialInfo {
+  std::string id;
+  std::string name;
+  std::string description;
+  std::vector<std::string> tags;
+  std::optional<int> latest_version;  ///< newest model of the default fingertip
+};
+
+/// Result of an upload.
+struct UploadReply {
+  int version = 0;
+  std::int64_t stroke_id = 0;
+  nlohmann::json body;  ///< full reply
+};
+
+/// HTTP client. Thread-compatible (one instance per thread, or external
+/// locking). Move-only.
+class FrictionClient {
+ public:
+  explicit FrictionClient(ClientOptions options = {});
+  ~FrictionClient();
+  FrictionClient(FrictionClient&&) noexcept;
+  FrictionClient& operator=(FrictionClient&&) noexcept;
+  FrictionClient(const FrictionClient&) = delete;
+  FrictionClient& operator=(const FrictionClient&) = delete;
+
+  /// @throws ClientError on HTTP errors or when unreachable.
+  std::vector<MaterialInfo> ListMaterials();
+  /// Newest model (version 0) or a given version of a material.
+  /// @throws ClientError: 404 carries the identification request the daemon
+  /// recorded (body()["identification"]).
+  ModelSet FetchModel(const std::string& material,
+                      int version = 0,
+                      const std::string& fingertip = "");
+  /// Uploads a stroke CSV (text/csv). Extra query parameters (e.g.
+  /// slip_peak_mm_s) may be given as name/value pairs.
+  UploadReply UploadStrokes(
+      const std::string& material,
+      const std::string& csv,
+      const std::vector<std::pair<std::string, std::string>>& params = {});
+  /// Generic JSON GET of a daemon path (e.g. "/v1/materials/x/predict?...").
+  nlohmann::json GetJson(const std::string& path_and_query);
+  /// Generic JSON request with a body.
+  nlohmann::json SendJson(const std::string& method,
+                          const std::string& path,
+                          const std::string& body,
+                          const std::string& content_type = "application/json");
+
+  const ClientOptions& options() const { return options_; }
+
+ private:
+  struct Impl;
+  ClientOptions options_;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Percent-encodes a query parameter value.
+std::string UrlEncode(const std::string& s);
+
+}  // namespace frictiond

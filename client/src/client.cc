@@ -1,0 +1,139 @@
+#include "frictiond/client/client.h"
+
+#include <httplib.h>
+
+namespace frictiond {
+
+using nlohmann::json;
+
+std::string UrlEncode(const std::string& s) {
+  static const char* kHex = "0123456789ABCDEF";
+  std::string out;
+  for (unsigned char c : s) {
+    if (std::isalnum(c) || c == '-' || c == '_' || c == '.' || c == '~') {
+      out += static_cast<char>(c);
+    } else {
+      out += '%';
+      out += kHex[c >> 4];
+      out += kHex[c & 15];
+    }
+  }
+  return out;
+}
+
+struct FrictionClient::Impl {
+  explicit Impl(const ClientOptions& o) : http(o.base_url) {
+    const auto sec = static_cast<time_t>(o.timeout_s);
+    const auto usec = static_cast<time_t>((o.timeout_s - sec) * 1e6);
+    http.set_connection_timeout(sec, usec);
+    http.set_read_timeout(sec, usec);
+    http.set_write_timeout(sec, usec);
+    http.set_keep_alive(true);
+    if (!o.robot.empty()) headers.emplace("X-Robot-Id", o.robot);
+  }
+  httplib::Client http;
+  httplib::Headers headers;
+};
+
+FrictionClient::FrictionClient(ClientOptions options)
+    : options_(std::move(options)), impl_(std::make_unique<Impl>(options_)) {}
+FrictionClient::~FrictionClient() = default;
+FrictionClient::FrictionClient(FrictionClient&&) noexcept = default;
+FrictionClient& FrictionClient::operator=(FrictionClient&&) noexcept = default;
+
+namespace {
+
+json Check(const httplib::Result& res,
+           const std::string& what,
+           const std::string& base_url) {
+  if (!res) {
+    throw ClientError(0,
+                      what + ": cannot reach frictiond at " + base_url + " (" +
+                          httplib::to_string(res.error()) + ")");
+  }
+  json body = json::parse(res->body, nullptr, false);
+  if (res->status >= 400) {
+    std::string msg = what + ": HTTP " + std::to_string(res->status);
+    if (body.is_object() && body.contains("detail"))
+      msg += ": " + body["detail"].get<std::string>();
+    throw ClientError(
+        res->status, msg, body.is_discarded() ? json(nullptr) : body);
+  }
+  if (body.is_discarded())
+    throw ClientError(res->status, what + ": reply is not JSON");
+  return body;
+}
+
+}  // namespace
+
+json FrictionClient::GetJson(const std::string& path) {
+  return Check(
+      impl_->http.Get(path, impl_->headers), "GET " + path, options_.base_url);
+}
+
+json FrictionClient::SendJson(const std::string& method,
+                              const std::string& path,
+                              const std::string& body,
+                              const std::string& content_type) {
+  httplib::Result res{nullptr, httplib::Error::Unknown};
+  if (method == "POST") {
+    res = impl_->http.Post(path, impl_->headers, body, content_type);
+  } else if (method == "PUT") {
+    res = impl_->http.Put(path, impl_->headers, body, content_type);
+  } else if (method == "DELETE") {
+    res = impl_->http.Delete(path, impl_->headers, body, content_type);
+  } else {
+    throw std::invalid_argument("method: " + method +
+                                " (must be POST, PUT or DELETE)");
+  }
+  return Check(res, method + " " + path, options_.base_url);
+}
+
+std::vector<MaterialInfo> FrictionClient::ListMaterials() {
+  const json j = GetJson("/v1/materials");
+  std::vector<MaterialInfo> out;
+  for (const json& m : j.at("materials")) {
+    MaterialInfo info;
+    info.id = m.value("id", "");
+    info.name = m.value("name", "");
+    info.description = m.value("description", "");
+    info.tags = m.value("tags", std::vector<std::string>{});
+    if (m.contains("latest_version") && m["latest_version"].is_number())
+      info.latest_version = m["latest_version"].get<int>();
+    out.push_back(info);
+  }
+  return out;
+}
+
+ModelSet FrictionClient::FetchModel(const std::string& material,
+                                    int version,
+                                    const std::string& fingertip) {
+  std::string path =
+      "/v1/materials/" + UrlEncode(material) + "/model?fingertip=" +
+      UrlEncode(fingertip.empty() ? options_.fingertip : fingertip);
+  if (version > 0) path += "&version=" + std::to_string(version);
+  const json j = GetJson(path);
+  try {
+    return ModelSetFromJson(j);
+  } catch (const std::exception& e) {
+    throw ClientError(200, "GET " + path + ": malformed model: " + e.what(), j);
+  }
+}
+
+UploadReply FrictionClient::UploadStrokes(
+    const std::string& material,
+    const std::string& csv,
+    const std::vector<std::pair<std::string, std::string>>& params) {
+  std::string path = "/v1/materials/" + UrlEncode(material) +
+                     "/strokes?fingertip=" + UrlEncode(options_.fingertip);
+  if (!options_.robot.empty()) path += "&robot=" + UrlEncode(options_.robot);
+  for (const auto& [k, v] : params)
+    path += "&" + UrlEncode(k) + "=" + UrlEncode(v);
+  UploadReply r;
+  r.body = SendJson("POST", path, csv, "text/csv");
+  r.version = r.body.value("version", 0);
+  r.stroke_id = r.body.value("stroke_id", std::int64_t{0});
+  return r;
+}
+
+}  // namespace frictiond

@@ -1,0 +1,36 @@
+#pragma once
+/// @file
+/// The `friction` command line: each cli_<name>.cc registers its
+/// subcommands. A command reports failure by printing to stderr and throwing
+/// CLI::RuntimeError(exit_code).
+
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "frictiond/estimators/stroke_data.h"
+
+namespace frictiond::cli {
+
+/// Options shared by all subcommands.
+struct Globals {
+  std::string server = "http://127.0.0.1:8080";  ///< daemon base URL (--server,
+                                                 ///< env FRICTIOND_SERVER)
+  std::string fingertip = "default";             ///< fingertip id (--fingertip)
+};
+
+/// Reads and parses a stroke CSV file.
+/// @throws CLI::RuntimeError(2) after printing "FILE: line N: ..." to stderr.
+StrokeData ReadStrokeCsvFile(const std::string& path);
+/// Reads a whole file. @throws CLI::RuntimeError(2) after printing why.
+std::string ReadFileOrFail(const std::string& path);
+
+void RegisterCoreCommands(
+    CLI::App& app,
+    Globals& g);  // cli_core.cc: materials, show, upload, predict, fit, ...
+void RegisterDiagnoseCommand(CLI::App& app,
+                             Globals& g);  // cli_diagnose.cc: diagnose
+void RegisterReportCommand(CLI::App& app, Globals& g);  // cli_report.cc: report
+void RegisterLuGreCommands(CLI::App& app, Globals& g);  // cli_lugre.cc
+
+}  // namespace frictiond::cli

@@ -1,0 +1,376 @@
+// Core subcommands of `friction`: library lookups through the daemon, local
+// model evaluation, and offline fitting.
+#include <cstdio>
+#include <iostream>
+#include <limits>
+
+#include "frictiond/client/client.h"
+#include "frictiond/estimators/stochastic_model.h"
+#include "frictiond/proto/model_json.h"
+
+#include "cli.h"
+
+namespace frictiond::cli {
+
+using nlohmann::json;
+
+namespace {
+
+FrictionClient MakeClient(const Globals& g) {
+  ClientOptions o;
+  o.base_url = g.server;
+  o.fingertip = g.fingertip;
+  return FrictionClient(o);
+}
+
+// Runs a command body, turning client errors into exit code 1 with the
+// daemon's message (and the identification request for unknown materials).
+template <typename F>
+void Run(F&& body) {
+  try {
+    body();
+  } catch (const ClientError& e) {
+    std::cerr << "friction: " << e.what() << "\n";
+    if (e.body().is_object() && e.body().contains("identification")) {
+      std::cerr << "identification requested; stroke to perform:\n"
+                << e.body()["identification"]["stroke"].dump(2) << "\n";
+    }
+    throw CLI::RuntimeError(1);
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "friction: " << e.what() << "\n";
+    throw CLI::RuntimeError(2);
+  }
+}
+
+void PrintModelSummary(const ModelSet& m) {
+  std::printf("material %s  fingertip %s  version %d  (%s)\n",
+              m.material.c_str(),
+              m.fingertip.c_str(),
+              m.version,
+              m.created_at.c_str());
+  if (!m.stochastic) {
+    std::printf("  no stochastic model\n");
+    return;
+  }
+  const StochasticFrictionModel& s = *m.stochastic;
+  std::printf("  mu = ");
+  for (std::size_t k = 0; k < s.mu.terms.size(); ++k) {
+    std::printf("%s%+.5g%s%s",
+                k ? " " : "",
+                s.mu.beta(k),
+                s.mu.terms[k].kind == TermKind::kIntercept ? "" : "*",
+                s.mu.terms[k].kind == TermKind::kIntercept
+                    ? ""
+                    : s.mu.terms[k].Name().c_str());
+  }
+  std::printf(
+      " + eps\n  sigma_eps %.4g  R2 %.3f  samples %d (slip) of %d  strokes "
+      "%d\n",
+      s.mu.sigma_eps,
+      s.mu.r2,
+      s.samples_slip,
+      s.samples_total,
+      s.strokes);
+  std::printf("  MAE %.4g vs Coulomb (mu %.4g) %.4g\n",
+              s.mu.mae,
+              s.mu_coulomb,
+              s.mae_coulomb);
+  for (const auto& u : s.mu.unidentified)
+    std::printf("  not identified (no span): %s\n", u.c_str());
+  if (s.likelihood.valid) {
+    std::printf(
+        "  slip likelihood L = 1/(1+exp(-%.4g (Ft/Fn - %.4g)))  never < %.3f, "
+        "always > %.3f\n",
+        s.likelihood.c1,
+        s.likelihood.c2,
+        s.likelihood.ratio_never,
+        s.likelihood.ratio_always);
+  } else {
+    std::printf("  slip likelihood from the eps distribution (%s)\n",
+                s.likelihood.why.c_str());
+  }
+}
+
+void AddLabellingOptions(CLI::App* cmd, double* peak, double* floor) {
+  cmd->add_option(
+      "--slip-peak-mm-s", *peak, "slip episode peak speed threshold [mm/s]");
+  cmd->add_option("--slip-floor-mm-s",
+                  *floor,
+                  "slip episode neighbour speed threshold [mm/s]");
+}
+
+}  // namespace
+
+void RegisterCoreCommands(CLI::App& app, Globals& g) {
+  // materials
+  {
+    auto* cmd = app.add_subcommand("materials", "list the library's materials");
+    static bool as_json = false;
+    cmd->add_flag("--json", as_json, "print JSON");
+    cmd->callback([&g] {
+      Run([&] {
+        FrictionClient c = MakeClient(g);
+        if (as_json) {
+          std::cout << c.GetJson("/v1/materials").dump(2) << "\n";
+          return;
+        }
+        for (const MaterialInfo& m : c.ListMaterials()) {
+          std::printf("%-24s v%-4s %s\n",
+                      m.id.c_str(),
+                      m.latest_version
+                          ? std::to_string(*m.latest_version).c_str()
+                          : "-",
+                      m.name.c_str());
+        }
+      });
+    });
+  }
+  // show
+  {
+    auto* cmd = app.add_subcommand(
+        "show", "show a material's newest (or a given) model");
+    static std::string id;
+    static int version = 0;
+    static bool as_json = false;
+    cmd->add_option("ID", id, "material id")->required();
+    cmd->add_option("--version", version, "model version (default: newest)");
+    cmd->add_flag("--json", as_json, "print the model JSON");
+    cmd->callback([&g] {
+      Run([&] {
+        FrictionClient c = MakeClient(g);
+        const ModelSet m = c.FetchModel(id, version);
+        if (as_json) {
+          std::cout << ModelSetToJson(m).dump(2) << "\n";
+        } else {
+          PrintModelSummary(m);
+        }
+      });
+    });
+  }
+  // upload
+  {
+    auto* cmd = app.add_subcommand(
+        "upload",
+        "upload a stroke CSV; the daemon refits and stores a new version");
+    static std::string id, file, robot;
+    static double peak = std::numeric_limits<double>::quiet_NaN(),
+                  floor = std::numeric_limits<double>::quiet_NaN();
+    cmd->add_option("ID", id, "material id")->required();
+    cmd->add_option("FILE", file, "stroke CSV")->required();
+    cmd->add_option("--robot", robot, "source robot id");
+    AddLabellingOptions(cmd, &peak, &floor);
+    cmd->callback([&g] {
+      const std::string csv = ReadFileOrFail(file);
+      Run([&] {
+        ClientOptions o;
+        o.base_url = g.server;
+        o.fingertip = g.fingertip;
+        o.robot = robot;
+        o.timeout_s = 60;
+        FrictionClient c(o);
+        std::vector<std::pair<std::string, std::string>> params;
+        if (std::isfinite(peak))
+          params.emplace_back("slip_peak_mm_s", std::to_string(peak));
+        if (std::isfinite(floor))
+          params.emplace_back("slip_floor_mm_s", std::to_string(floor));
+        const UploadReply r = c.UploadStrokes(id, csv, params);
+        std::cout << r.body.dump(2) << "\n";
+      });
+    });
+  }
+  // predict (local evaluation of the fetched model)
+  {
+    auto* cmd = app.add_subcommand(
+        "predict",
+        "predict mu at (Fn, v): fetches the model once, evaluates locally");
+    static std::string id;
+    static double fn = 0, v = 0;
+    cmd->add_option("ID", id, "material id")->required();
+    cmd->add_option("--fn-n", fn, "normal force [N]")->required();
+    cmd->add_option("--v-mm-s", v, "sliding speed [mm/s]")->required();
+    cmd->callback([&g] {
+      Run([&] {
+        if (!(fn > 0))
+          throw std::invalid_argument("--fn-n = " + std::to_string(fn) +
+                                      " (must be > 0)");
+        if (!(v >= 0))
+          throw std::invalid_argument("--v-mm-s = " + std::to_string(v) +
+                                      " (must be >= 0)");
+        FrictionClient c = MakeClient(g);
+        const ModelSet m = c.FetchModel(id);
+        if (!m.stochastic)
+          throw ClientError(200, "model has no stochastic family");
+        const MuPrediction p = PredictMu(*m.stochastic, fn, v);
+        json out = {{"material", id},
+                    {"version", m.version},
+                    {"mu", p.mu},
+                    {"sigma", p.sigma},
+                    {"interval95", {p.lo95, p.hi95}},
+                    {"extrapolated", p.extrapolated},
+                    {"extrapolated_inputs", p.extrapolated_inputs}};
+        std::cout << out.dump(2) << "\n";
+      });
+    });
+  }
+  // slip
+  {
+    auto* cmd = app.add_subcommand(
+        "slip", "likelihood of slip at (Fn, Ft), evaluated locally");
+    static std::string id;
+    static double fn = 0, ft = 0;
+    cmd->add_option("ID", id, "material id")->required();
+    cmd->add_option("--fn-n", fn, "normal force [N]")->required();
+    cmd->add_option("--ft-n", ft, "tangential force [N]")->required();
+    cmd->callback([&g] {
+      Run([&] {
+        if (!(fn > 0))
+          throw std::invalid_argument("--fn-n = " + std::to_string(fn) +
+                                      " (must be > 0)");
+        if (!(ft >= 0))
+          throw std::invalid_argument("--ft-n = " + std::to_string(ft) +
+                                      " (must be >= 0)");
+        FrictionClient c = MakeClient(g);
+        const ModelSet m = c.FetchModel(id);
+        if (!m.stochastic)
+          throw ClientError(200, "model has no stochastic family");
+        std::cout << json{{"material", id},
+                          {"version", m.version},
+                          {"likelihood",
+                           CalcSlipLikelihood(*m.stochastic, fn, ft)},
+                          {"ratio", ft / fn}}
+                         .dump(2)
+                  << "\n";
+      });
+    });
+  }
+  // grip
+  {
+    auto* cmd = app.add_subcommand(
+        "grip", "grip force holding a load at a slip risk (paper 000, IV-A)");
+    static std::string id;
+    static double load = 0, risk = 0.001;
+    cmd->add_option("ID", id, "material id")->required();
+    cmd->add_option("--load-n", load, "tangential load to hold [N]")
+        ->required();
+    cmd->add_option(
+        "--risk",
+        risk,
+        "acceptable slip probability, e.g. 0.001 (coffee) or 0.05 (shirt)");
+    cmd->callback([&g] {
+      Run([&] {
+        FrictionClient c = MakeClient(g);
+        const ModelSet m = c.FetchModel(id);
+        if (!m.stochastic)
+          throw ClientError(200, "model has no stochastic family");
+        const GripForce gf = CalcGripForce(*m.stochastic, load, risk);
+        if (!gf.attainable)
+          throw ClientError(422, "no grip force holds the load: " + gf.why);
+        std::cout << json{{"material", id},
+                          {"version", m.version},
+                          {"fn_n", gf.fn_n},
+                          {"mu_used", gf.mu_used},
+                          {"extrapolated", gf.extrapolated}}
+                         .dump(2)
+                  << "\n";
+      });
+    });
+  }
+  // versions
+  {
+    auto* cmd =
+        app.add_subcommand("versions", "list a material's model versions");
+    static std::string id;
+    cmd->add_option("ID", id, "material id")->required();
+    cmd->callback([&g] {
+      Run([&] {
+        FrictionClient c = MakeClient(g);
+        std::cout << c.GetJson("/v1/materials/" + UrlEncode(id) +
+                               "/models?fingertip=" + UrlEncode(g.fingertip))
+                         .dump(2)
+                  << "\n";
+      });
+    });
+  }
+  // put / delete
+  {
+    auto* cmd = app.add_subcommand("put", "create or update a material");
+    static std::string id, name, description;
+    static std::vector<std::string> tags;
+    cmd->add_option("ID", id, "material id")->required();
+    cmd->add_option("--name", name, "display name");
+    cmd->add_option("--description", description, "description");
+    cmd->add_option("--tag", tags, "tag (repeatable)");
+    cmd->callback([&g] {
+      Run([&] {
+        FrictionClient c = MakeClient(g);
+        json body = json::object();
+        if (!name.empty()) body["name"] = name;
+        if (!description.empty()) body["description"] = description;
+        if (!tags.empty()) body["tags"] = tags;
+        std::cout << c.SendJson(
+                          "PUT", "/v1/materials/" + UrlEncode(id), body.dump())
+                         .dump(2)
+                  << "\n";
+      });
+    });
+  }
+  {
+    auto* cmd = app.add_subcommand(
+        "delete", "delete a material with its strokes and models");
+    static std::string id;
+    cmd->add_option("ID", id, "material id")->required();
+    cmd->callback([&g] {
+      Run([&] {
+        FrictionClient c = MakeClient(g);
+        std::cout << c.SendJson("DELETE", "/v1/materials/" + UrlEncode(id), "")
+                         .dump(2)
+                  << "\n";
+      });
+    });
+  }
+  // fit (offline)
+  {
+    auto* cmd = app.add_subcommand(
+        "fit",
+        "fit the stochastic model to stroke CSV files offline (no daemon)");
+    static std::vector<std::string> files;
+    static bool as_json = false;
+    static double peak = std::numeric_limits<double>::quiet_NaN(),
+                  floor = std::numeric_limits<double>::quiet_NaN();
+    cmd->add_option("FILE", files, "stroke CSV file(s)")->required();
+    cmd->add_flag("--json", as_json, "print the model JSON");
+    AddLabellingOptions(cmd, &peak, &floor);
+    cmd->callback([] {
+      StrokeData all;
+      StochasticFitOptions options;
+      if (std::isfinite(peak)) options.labelling.peak_mm_s = peak;
+      if (std::isfinite(floor)) options.labelling.floor_mm_s = floor;
+      std::string why;
+      if (!options.IsValid(&why)) {
+        std::cerr << "friction: " << why << "\n";
+        throw CLI::RuntimeError(2);
+      }
+      for (const auto& f : files) {
+        StrokeData d = ReadStrokeCsvFile(f);
+        EnsureLabels(&d, options.labelling);
+        all.Append(d);
+      }
+      const StochasticFit fit = FitStochasticModel(all, options);
+      if (fit.status != FitStatus::kOk && fit.status != FitStatus::kPartial) {
+        std::cerr << "friction: no model: " << fit.why << "\n";
+        throw CLI::RuntimeError(1);
+      }
+      ModelSet set;
+      set.material = files.size() == 1 ? files[0] : "offline";
+      set.stochastic = fit.model;
+      if (as_json) {
+        std::cout << ModelSetToJson(set).dump(2) << "\n";
+      } else {
+        PrintModelSummary(set);
+        if (!fit.why.empty()) std::printf("  note: %s\n", fit.why.c_str());
+      }
+    });
+  }
+}
+
+}  // namespace frictiond::cli

@@ -1,0 +1,29 @@
+// friction: command line client of frictiond (and offline fitting tools).
+#include <cstdlib>
+#include <iostream>
+
+#include "cli.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"friction: friction material library client (frictiond)"};
+  app.require_subcommand(1);
+  frictiond::cli::Globals g;
+  if (const char* env = std::getenv("FRICTIOND_SERVER")) g.server = env;
+  app.add_option("--server", g.server, "daemon base URL")
+      ->capture_default_str();
+  app.add_option("--fingertip", g.fingertip, "fingertip id")
+      ->capture_default_str();
+  frictiond::cli::RegisterCoreCommands(app, g);
+  frictiond::cli::RegisterDiagnoseCommand(app, g);
+  frictiond::cli::RegisterReportCommand(app, g);
+  frictiond::cli::RegisterLuGreCommands(app, g);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const std::exception& e) {
+    std::cerr << "friction: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

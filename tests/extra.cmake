@@ -1,0 +1,18 @@
+# Extra wiring of the cross-module tests (included by tests/CMakeLists.txt).
+
+# The daemon launcher in frictiond_testing (daemon_process.h) uses
+# cpp-httplib; its ABI depends on the pkg-config macros, so take them from
+# the same interface target as the server.
+target_link_libraries(frictiond_testing PUBLIC frictiond_httplib)
+
+# The crash-safety test opens the database with SQLite directly to run
+# PRAGMA integrity_check after SIGKILLs.
+if(TARGET crash_safety_test)
+  target_link_libraries(crash_safety_test PRIVATE SQLite::SQLite3)
+  set_tests_properties(crash_safety_test PROPERTIES TIMEOUT 120)
+endif()
+foreach(_t http_api_test bad_input_test crash_safety_test)
+  if(TARGET ${_t})
+    set_tests_properties(${_t} PROPERTIES LABELS "daemon")
+  endif()
+endforeach()
