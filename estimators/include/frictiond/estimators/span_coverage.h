@@ -1,0 +1,64 @@
+#pragma once
+/// @file
+/// Span coverage of a test stroke (paper 000, section III-E and Fig. 10):
+/// the area of the convex hull of the slipping samples in the Fn-v plane as
+/// a percentage of a reference span. The paper's reference is the hull of
+/// the full handheld dataset; the library uses the rectangle of the stroke
+/// plan it asked for (StrokePlanOptions), and finds that >= 50 % span
+/// identifies eq. (1) reliably.
+///
+/// Usage:
+/// @code
+///   SpanRect plan{0.5, 4.5, 15.0, 80.0};
+///   SpanCoverage c = CalcSpanCoverage(fn_slip, v_slip, plan);
+///   if (c.span_pct < 50) { SpanRect next = c.missing; /* ask for it */ }
+/// @endcode
+
+#include <string>
+#include <vector>
+
+namespace frictiond {
+
+/// An axis-aligned region of the Fn-v plane [N] x [mm/s].
+struct SpanRect {
+  double fn_min_n = 0.0;
+  double fn_max_n = 0.0;
+  double v_min_mm_s = 0.0;
+  double v_max_mm_s = 0.0;
+
+  /// True when both ranges are finite and non-empty.
+  bool IsValid() const;
+  double Area() const {
+    return (fn_max_n - fn_min_n) * (v_max_mm_s - v_min_mm_s);
+  }
+};
+
+/// Result of CalcSpanCoverage.
+struct SpanCoverage {
+  /// Hull area / reference area x 100, in [0, 100].
+  double span_pct = 0.0;
+  /// Extent of the (clamped) slipping samples; all zero when there are none.
+  SpanRect covered;
+  /// The part of the reference a follow-up stroke should sweep: along each
+  /// axis whose covered extent is below half the reference, the larger
+  /// uncovered end; along the other axes the whole reference range. Equal
+  /// to the reference when nothing was covered.
+  SpanRect missing;
+  /// Slipping samples used.
+  int samples = 0;
+};
+
+/// Coverage of `reference` by the points (fn_n[i], v_mm_s[i]) (the slipping
+/// samples). Points outside the reference are clamped onto its border, so
+/// the hull never leaves it. Non-finite points are ignored.
+/// @throws std::invalid_argument when the reference is not valid or the
+/// arrays differ in length.
+SpanCoverage CalcSpanCoverage(const std::vector<double>& fn_n,
+                              const std::vector<double>& v_mm_s,
+                              const SpanRect& reference);
+
+/// Area of the convex hull of the points (monotone chain); 0 for fewer than
+/// three non-collinear points.
+double CalcConvexHullArea(std::vector<std::pair<double, double>> points);
+
+}  // namespace frictiond

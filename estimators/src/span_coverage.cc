@@ -1,0 +1,113 @@
+#include "frictiond/estimators/span_coverage.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <utility>
+
+namespace frictiond {
+
+bool SpanRect::IsValid() const {
+  return std::isfinite(fn_min_n) && std::isfinite(fn_max_n) &&
+         std::isfinite(v_min_mm_s) && std::isfinite(v_max_mm_s) &&
+         fn_max_n > fn_min_n && v_max_mm_s > v_min_mm_s;
+}
+
+double CalcConvexHullArea(std::vector<std::pair<double, double>> p) {
+  std::sort(p.begin(), p.end());
+  p.erase(std::unique(p.begin(), p.end()), p.end());
+  const std::size_t n = p.size();
+  if (n < 3) return 0.0;
+  using Point = std::pair<double, double>;
+  auto cross = [](const Point& o, const Point& a, const Point& b) {
+    return (a.first - o.first) * (b.second - o.second) -
+           (a.second - o.second) * (b.first - o.first);
+  };
+  // Andrew's monotone chain: lower then upper hull.
+  std::vector<Point> hull(2 * n);
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    while (k >= 2 && cross(hull[k - 2], hull[k - 1], p[i]) <= 0) --k;
+    hull[k++] = p[i];
+  }
+  for (std::size_t i = n - 1, t = k + 1; i-- > 0;) {
+    while (k >= t && cross(hull[k - 2], hull[k - 1], p[i]) <= 0) --k;
+    hull[k++] = p[i];
+  }
+  hull.resize(k - 1);
+  double twice_area = 0.0;
+  for (std::size_t i = 0; i < hull.size(); ++i) {
+    const Point& a = hull[i];
+    const Point& b = hull[(i + 1) % hull.size()];
+    twice_area += a.first * b.second - b.first * a.second;
+  }
+  return std::fabs(twice_area) / 2.0;
+}
+
+SpanCoverage CalcSpanCoverage(const std::vector<double>& fn_n,
+                              const std::vector<double>& v_mm_s,
+                              const SpanRect& reference) {
+  if (!reference.IsValid())
+    throw std::invalid_argument(
+        "reference: fn and v ranges must be finite and non-empty");
+  if (fn_n.size() != v_mm_s.size())
+    throw std::invalid_argument("fn_n and v_mm_s differ in length (" +
+                                std::to_string(fn_n.size()) + " vs " +
+                                std::to_string(v_mm_s.size()) + ")");
+  SpanCoverage out;
+  out.missing = reference;
+  std::vector<std::pair<double, double>> points;
+  points.reserve(fn_n.size());
+  for (std::size_t i = 0; i < fn_n.size(); ++i) {
+    if (!std::isfinite(fn_n[i]) || !std::isfinite(v_mm_s[i])) continue;
+    points.emplace_back(
+        std::clamp(fn_n[i], reference.fn_min_n, reference.fn_max_n),
+        std::clamp(v_mm_s[i], reference.v_min_mm_s, reference.v_max_mm_s));
+  }
+  out.samples = static_cast<int>(points.size());
+  if (points.empty()) return out;
+  SpanRect& c = out.covered;
+  c = {points[0].first, points[0].first, points[0].second, points[0].second};
+  for (const auto& [f, v] : points) {
+    c.fn_min_n = std::min(c.fn_min_n, f);
+    c.fn_max_n = std::max(c.fn_max_n, f);
+    c.v_min_mm_s = std::min(c.v_min_mm_s, v);
+    c.v_max_mm_s = std::max(c.v_max_mm_s, v);
+  }
+  out.span_pct = std::clamp(
+      100.0 * CalcConvexHullArea(std::move(points)) / reference.Area(),
+      0.0,
+      100.0);
+  // Missing region: per axis, the larger uncovered end when the covered
+  // extent is below half of the reference range.
+  auto missing_axis = [](double lo,
+                         double hi,
+                         double c_lo,
+                         double c_hi,
+                         double* m_lo,
+                         double* m_hi) {
+    if (c_hi - c_lo >= 0.5 * (hi - lo)) return;
+    if (c_lo - lo >= hi - c_hi) {
+      *m_lo = lo;
+      *m_hi = c_lo;
+    } else {
+      *m_lo = c_hi;
+      *m_hi = hi;
+    }
+  };
+  missing_axis(reference.fn_min_n,
+               reference.fn_max_n,
+               c.fn_min_n,
+               c.fn_max_n,
+               &out.missing.fn_min_n,
+               &out.missing.fn_max_n);
+  missing_axis(reference.v_min_mm_s,
+               reference.v_max_mm_s,
+               c.v_min_mm_s,
+               c.v_max_mm_s,
+               &out.missing.v_min_mm_s,
+               &out.missing.v_max_mm_s);
+  return out;
+}
+
+}  // namespace frictiond

@@ -1,0 +1,67 @@
+#include "frictiond/estimators/span_coverage.h"
+
+#include <stdexcept>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+namespace frictiond {
+namespace {
+
+const SpanRect kPlan{0.5, 4.5, 15.0, 80.0};  // paper 000 II-C span
+
+TEST(SpanCoverage, HullAreaOfKnownShapes) {
+  // Unit square with an interior point and a duplicate: area 1.
+  EXPECT_DOUBLE_EQ(
+      CalcConvexHullArea({{0, 0}, {1, 0}, {1, 1}, {0, 1}, {0.5, 0.5}, {0, 0}}),
+      1.0);
+  // Triangle (0,0) (4,0) (0,3): area 6.
+  EXPECT_DOUBLE_EQ(CalcConvexHullArea({{0, 0}, {4, 0}, {0, 3}, {1, 1}}), 6.0);
+  // Collinear points have no area.
+  EXPECT_DOUBLE_EQ(CalcConvexHullArea({{0, 0}, {1, 1}, {2, 2}}), 0.0);
+}
+
+TEST(SpanCoverage, FullSweepCoversEverything) {
+  const std::vector<double> fn = {0.5, 4.5, 4.5, 0.5, 2.0};
+  const std::vector<double> v = {15, 15, 80, 80, 40};
+  const SpanCoverage c = CalcSpanCoverage(fn, v, kPlan);
+  EXPECT_NEAR(c.span_pct, 100.0, 1e-9);
+  EXPECT_EQ(c.samples, 5);
+}
+
+TEST(SpanCoverage, PointsOutsideAreClamped) {
+  // A square far bigger than the plan still covers exactly 100 %.
+  const std::vector<double> fn = {0.0, 9.0, 9.0, 0.0};
+  const std::vector<double> v = {0, 0, 300, 300};
+  EXPECT_NEAR(CalcSpanCoverage(fn, v, kPlan).span_pct, 100.0, 1e-9);
+}
+
+TEST(SpanCoverage, LowForceStrokeAsksForHighForce) {
+  // Covers fn 0.5..1.5 N (25 % of the Fn range), full speed range: 25 %.
+  const std::vector<double> fn = {0.5, 1.5, 1.5, 0.5};
+  const std::vector<double> v = {15, 15, 80, 80};
+  const SpanCoverage c = CalcSpanCoverage(fn, v, kPlan);
+  EXPECT_NEAR(c.span_pct, 25.0, 1e-9);
+  EXPECT_DOUBLE_EQ(c.missing.fn_min_n, 1.5);
+  EXPECT_DOUBLE_EQ(c.missing.fn_max_n, 4.5);
+  // The speed range was covered, so it stays the whole plan's range.
+  EXPECT_DOUBLE_EQ(c.missing.v_min_mm_s, 15.0);
+  EXPECT_DOUBLE_EQ(c.missing.v_max_mm_s, 80.0);
+}
+
+TEST(SpanCoverage, NothingCoveredMeansWholePlanMissing) {
+  const SpanCoverage c = CalcSpanCoverage({}, {}, kPlan);
+  EXPECT_EQ(c.span_pct, 0.0);
+  EXPECT_EQ(c.samples, 0);
+  EXPECT_DOUBLE_EQ(c.missing.fn_min_n, kPlan.fn_min_n);
+  EXPECT_DOUBLE_EQ(c.missing.v_max_mm_s, kPlan.v_max_mm_s);
+}
+
+TEST(SpanCoverage, RejectsBadInput) {
+  EXPECT_THROW(CalcSpanCoverage({1.0}, {}, kPlan), std::invalid_argument);
+  EXPECT_THROW(CalcSpanCoverage({}, {}, SpanRect{1, 1, 0, 10}),
+               std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace frictiond
