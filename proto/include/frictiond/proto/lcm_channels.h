@@ -1,0 +1,27 @@
+#pragma once
+/// @file
+/// LCM channel names of frictiond (docs/lcm.md). The message types are
+/// generated from proto/*.lcm (package frictiond); each channel carries one
+/// versioned type, and a new version gets a new channel (..._V2) so that old
+/// robots keep working.
+
+namespace frictiond {
+
+/// Robot -> daemon: material_query_v1.
+inline constexpr const char* kLcmQueryChannel = "FRICTIOND_QUERY_V1";
+/// Daemon -> robot: material_reply_v1.
+inline constexpr const char* kLcmReplyChannel = "FRICTIOND_REPLY_V1";
+/// Daemon -> robot: identification_request_v1 (the test stroke to perform).
+inline constexpr const char* kLcmIdentRequestChannel =
+    "FRICTIOND_IDENT_REQUEST_V1";
+/// Robot -> daemon: stroke_chunk_v1.
+inline constexpr const char* kLcmStrokeChannel = "FRICTIOND_STROKE_V1";
+/// Daemon -> robot: coverage_progress_v1 (also the resend request).
+inline constexpr const char* kLcmProgressChannel = "FRICTIOND_PROGRESS_V1";
+/// Daemon -> fleet: model_update_v1.
+inline constexpr const char* kLcmModelUpdateChannel =
+    "FRICTIOND_MODEL_UPDATE_V1";
+/// Daemon -> sender: error_v1 (a rejected message, nothing stored).
+inline constexpr const char* kLcmErrorChannel = "FRICTIOND_ERROR_V1";
+
+}  // namespace frictiond

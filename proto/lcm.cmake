@@ -1,0 +1,29 @@
+# LCM message types (CONTRACT.md "LCM"): proto/*.lcm, package frictiond,
+# generated to C++ headers with lcm-gen at build time into the build tree
+# (never into the source tree). Included by proto/CMakeLists.txt when
+# FRICTIOND_WITH_LCM is ON.
+file(GLOB _lcm_types CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*.lcm)
+set(_lcm_out ${CMAKE_BINARY_DIR}/lcmtypes/include)  # installed by FrictiondInstall
+set(_lcm_headers)
+foreach(_f ${_lcm_types})
+  get_filename_component(_n ${_f} NAME_WE)
+  list(APPEND _lcm_headers ${_lcm_out}/frictiond/${_n}.hpp)
+endforeach()
+add_custom_command(
+  OUTPUT ${_lcm_headers}
+  COMMAND ${CMAKE_COMMAND} -E make_directory ${_lcm_out}
+  COMMAND ${LCM_GEN} --cpp --cpp-hpath ${_lcm_out} ${_lcm_types}
+  DEPENDS ${_lcm_types}
+  COMMENT "lcm-gen --cpp: frictiond LCM message types"
+  VERBATIM)
+add_custom_target(frictiond_lcmtypes_gen DEPENDS ${_lcm_headers})
+
+# Header-only target of the generated types: #include "frictiond/<type>.hpp".
+add_library(frictiond_lcmtypes INTERFACE)
+add_library(frictiond::lcmtypes ALIAS frictiond_lcmtypes)
+add_dependencies(frictiond_lcmtypes frictiond_lcmtypes_gen)
+# SYSTEM: generated code is not held to our warning flags.
+target_include_directories(frictiond_lcmtypes SYSTEM INTERFACE
+  $<BUILD_INTERFACE:${_lcm_out}>)
+target_link_libraries(frictiond_lcmtypes INTERFACE PkgConfig::LCM)
+target_compile_definitions(frictiond_lcmtypes INTERFACE FRICTIOND_HAVE_LCM=1)
