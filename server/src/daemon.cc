@@ -92,6 +92,12 @@ void DaemonConfig::Validate() const {
     throw std::invalid_argument("plan: max_duration_s must be > 0");
   if (!(plan.min_span_pct > 0 && plan.min_span_pct <= 100))
     throw std::invalid_argument("plan: min_span_pct must be in (0, 100]");
+  if (lcm_url.empty())
+    throw std::invalid_argument("--lcm: empty (give a provider URL or none)");
+  if (lcm_url != "none" && !HaveLcmEndpoint())
+    throw std::invalid_argument("--lcm " + lcm_url +
+                                ": this build has no LCM support "
+                                "(FRICTIOND_WITH_LCM=OFF); use --lcm none");
 }
 
 Daemon::Daemon(DaemonConfig config) : config_(std::move(config)) {
@@ -119,12 +125,21 @@ int Daemon::Start() {
   RegisterLuGreFeature(*http_, *library_);
   RegisterDiagnosisRoutes(*http_, *library_);
   RegisterRecognitionRoutes(*http_, *library_);
-  return http_->Bind(config_.bind, config_.port);
+  const int port = http_->Bind(config_.bind, config_.port);
+  if (config_.lcm_url != "none") {
+    LcmEndpointOptions lo_lcm;
+    lo_lcm.url = config_.lcm_url;
+    lcm_ = std::make_unique<LcmEndpoint>(*library_, lo_lcm);
+    lcm_->Start();
+    std::cerr << "frictiond: LCM endpoint on " << config_.lcm_url << "\n";
+  }
+  return port;
 }
 
 void Daemon::Serve() { http_->Serve(); }
 
 void Daemon::Stop() {
+  if (lcm_) lcm_->Stop();
   if (http_) http_->Stop();
 }
 

@@ -1,12 +1,13 @@
 #pragma once
 /// @file
-/// The frictiond daemon: configuration, wiring of store, library, HTTP (and
-/// later LCM) endpoints, start-up data loading and orderly shutdown.
+/// The frictiond daemon: configuration, wiring of store, library, HTTP and
+/// LCM endpoints, start-up data loading and orderly shutdown.
 
 #include <memory>
 #include <string>
 
 #include "frictiond/server/http_server.h"
+#include "frictiond/server/lcm_endpoint.h"
 #include "frictiond/server/library.h"
 
 namespace frictiond {
@@ -41,12 +42,15 @@ class Daemon {
   Daemon(const Daemon&) = delete;
   Daemon& operator=(const Daemon&) = delete;
 
-  /// Opens the store, loads bundled data into an empty library, binds HTTP.
+  /// Opens the store, loads bundled data into an empty library, binds HTTP
+  /// and starts the LCM endpoint (unless lcm_url is "none").
+  /// @throws std::invalid_argument for --lcm in a build without LCM,
+  /// std::runtime_error when the LCM provider cannot be created.
   /// @return the bound HTTP port.
   int Start();
   /// Serves until Stop() (blocking).
   void Serve();
-  /// Stops serving (any thread).
+  /// Stops serving HTTP and LCM (any thread; idempotent).
   void Stop();
 
   FrictionLibrary& library();
@@ -57,6 +61,7 @@ class Daemon {
   DaemonConfig config_;
   std::unique_ptr<FrictionLibrary> library_;
   std::unique_ptr<HttpServer> http_;
+  std::unique_ptr<LcmEndpoint> lcm_;  ///< null when lcm_url is "none"
 };
 
 }  // namespace frictiond

@@ -1,0 +1,64 @@
+#pragma once
+/// @file
+/// The daemon's LCM endpoint (docs/lcm.md): the workflow of paper 000,
+/// Fig. 11 over LCM, beside HTTP and on the same FrictionLibrary core.
+/// - material_query_v1 -> material_reply_v1 with the model, or "unknown"
+///   plus an identification_request_v1 (the job is recorded in the Store);
+/// - stroke_chunk_v1 -> reassembled (StrokeReassembler), coverage checked
+///   (paper 000 III-E, Fig. 10), ingested through
+///   FrictionLibrary::IngestStrokes (the HTTP upload's validation), with
+///   coverage_progress_v1 along the way, a follow-up request when the span
+///   is too small, and model_update_v1 for every new model version;
+/// - every rejected message gets an error_v1 naming the field; nothing of it
+///   is stored.
+/// One thread runs lcm handleTimeout in a loop; no exception leaves it.
+/// Available when built with FRICTIOND_WITH_LCM.
+
+#include <memory>
+#include <string>
+
+#include "frictiond/server/library.h"
+#include "frictiond/server/stroke_reassembler.h"
+
+namespace frictiond {
+
+namespace internal {
+class LcmEndpointImpl;
+}  // namespace internal
+
+/// Options of the LCM endpoint.
+struct LcmEndpointOptions {
+  /// LCM provider URL, e.g. "udpm://239.255.76.67:7667?ttl=0".
+  std::string url;
+  /// Chunk limits and resend/give-up timing.
+  ReassemblerOptions reassembly;
+  /// Longest wait in one handleTimeout call [ms] (bounds the stop latency
+  /// and the resend timer resolution).
+  int poll_ms = 20;
+  /// Strokes per job before it fails for too little span coverage.
+  int max_strokes_per_job = 5;
+};
+
+/// The endpoint. Not copyable or movable.
+class LcmEndpoint {
+ public:
+  /// @throws std::invalid_argument for bad options, std::runtime_error when
+  /// the LCM provider cannot be created (e.g. no multicast route).
+  LcmEndpoint(FrictionLibrary& library, LcmEndpointOptions options);
+  ~LcmEndpoint();
+  LcmEndpoint(const LcmEndpoint&) = delete;
+  LcmEndpoint& operator=(const LcmEndpoint&) = delete;
+
+  /// Starts the handling thread (no-op when running).
+  void Start();
+  /// Stops and joins it (any thread except the handling one; idempotent).
+  void Stop();
+
+ private:
+  std::unique_ptr<internal::LcmEndpointImpl> impl_;
+};
+
+/// True when this build has the LCM endpoint (FRICTIOND_WITH_LCM).
+bool HaveLcmEndpoint();
+
+}  // namespace frictiond

@@ -1,0 +1,718 @@
+// The daemon's LCM endpoint (lcm_endpoint.h, docs/lcm.md): paper 000,
+// Fig. 11 (library lookup, test stroke, identification, fleet update) as a
+// protocol beside HTTP, sharing FrictionLibrary.
+#include "frictiond/server/lcm_endpoint.h"
+
+#include <stdexcept>
+
+#ifdef FRICTIOND_HAVE_LCM
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <iostream>
+#include <map>
+#include <mutex>
+#include <set>
+#include <thread>
+
+#include <lcm/lcm-cpp.hpp>
+
+#include "frictiond/coverage_progress_v1.hpp"
+#include "frictiond/error_v1.hpp"
+#include "frictiond/estimators/preprocessing.h"
+#include "frictiond/estimators/span_coverage.h"
+#include "frictiond/estimators/stroke_csv.h"
+#include "frictiond/identification_request_v1.hpp"
+#include "frictiond/material_query_v1.hpp"
+#include "frictiond/material_reply_v1.hpp"
+#include "frictiond/model_update_v1.hpp"
+#include "frictiond/proto/lcm_channels.h"
+#include "frictiond/proto/lugre_json.h"
+#include "frictiond/stroke_chunk_v1.hpp"
+
+namespace frictiond {
+
+using nlohmann::json;
+
+namespace {
+
+constexpr std::size_t kMaxTextField = 128;
+
+std::int64_t NowUtime() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+double NowMonotonicS() {
+  return std::chrono::duration<double>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+// The field a validation message names: the text before " = " or ":".
+std::string FieldOf(const std::string& message) {
+  const std::size_t eq = message.find(" = ");
+  const std::size_t colon = message.find(':');
+  return message.substr(0, std::min(eq, colon));
+}
+
+// Job whose ingest is running on this thread, for the model listener.
+thread_local std::int64_t tl_ingesting_job = 0;
+
+/// Encodes a model version as friction_model_v1.
+friction_model_v1 ToLcm(const CachedModel& m) {
+  friction_model_v1 out;
+  out.material = m.set.material;
+  out.fingertip = m.set.fingertip;
+  out.version = m.set.version;
+  out.created_at = m.set.created_at;
+  out.n_terms = 0;
+  out.sigma_eps = out.r2 = out.mu_coulomb = std::nan("");
+  out.likelihood_c1 = out.likelihood_c2 = std::nan("");
+  out.samples = 0;
+  out.n_quantiles = 0;
+  if (m.set.stochastic) {
+    const StochasticFrictionModel& s = *m.set.stochastic;
+    out.n_terms = static_cast<int32_t>(s.mu.terms.size());
+    for (std::size_t i = 0; i < s.mu.terms.size(); ++i) {
+      out.term_names.push_back(s.mu.terms[i].Name());
+      out.coefficients.push_back(static_cast<Eigen::Index>(i) < s.mu.beta.size()
+                                     ? s.mu.beta[i]
+                                     : std::nan(""));
+      out.std_errors.push_back(
+          static_cast<Eigen::Index>(i) < s.mu.std_err.size() ? s.mu.std_err[i]
+                                                             : std::nan(""));
+    }
+    out.sigma_eps = s.mu.sigma_eps;
+    out.r2 = s.mu.r2;
+    out.samples = s.mu.samples;
+    const std::vector<double>& levels = EpsQuantileLevels();
+    if (s.mu.eps_quantiles.size() == levels.size()) {
+      out.n_quantiles = static_cast<int32_t>(levels.size());
+      out.eps_levels = levels;
+      out.eps_quantiles = s.mu.eps_quantiles;
+    }
+    out.mu_coulomb = s.mu_coulomb;
+    if (s.likelihood.valid) {
+      out.likelihood_c1 = s.likelihood.c1;
+      out.likelihood_c2 = s.likelihood.c2;
+    }
+  }
+  out.has_lugre = false;
+  for (double& x : out.lugre_theta) x = std::nan("");
+  if (auto it = m.set.other.find(kLuGreFamilyKey); it != m.set.other.end()) {
+    try {
+      const LuGreFamily f = LuGreFromJson(*it);
+      for (int i = 0; i < 6; ++i) out.lugre_theta[i] = f.theta[i];
+      out.has_lugre = true;
+    } catch (const std::exception&) {
+      // A family this build cannot read is left out of the LCM message.
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+namespace internal {
+
+/// Publishes on an LCM instance from any thread, until closed (the model
+/// listener registered with the library may outlive the endpoint).
+class LcmPublisher {
+ public:
+  explicit LcmPublisher(lcm::LCM* lcm) : lcm_(lcm) {}
+  template <class Message>
+  void Publish(const char* channel, const Message& message) {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (lcm_) lcm_->publish(channel, &message);
+  }
+  void Close() {
+    std::lock_guard<std::mutex> lock(mu_);
+    lcm_ = nullptr;
+  }
+
+ private:
+  std::mutex mu_;
+  lcm::LCM* lcm_;
+};
+
+class LcmEndpointImpl {
+ public:
+  LcmEndpointImpl(FrictionLibrary& library, LcmEndpointOptions options)
+      : library_(library),
+        options_(std::move(options)),
+        lcm_(options_.url),
+        reassembler_(options_.reassembly) {
+    if (!lcm_.good())
+      throw std::runtime_error(
+          "--lcm " + options_.url +
+          ": cannot create the LCM provider (for udpm on loopback: ip link "
+          "set lo multicast on; ip route add 224.0.0.0/4 dev lo)");
+    if (options_.max_strokes_per_job < 1)
+      throw std::invalid_argument("max_strokes_per_job must be >= 1");
+    publisher_ = std::make_shared<LcmPublisher>(&lcm_);
+    lcm_.subscribe(kLcmQueryChannel, &LcmEndpointImpl::OnQuery, this);
+    lcm_.subscribe(kLcmStrokeChannel, &LcmEndpointImpl::OnChunk, this);
+    // Tell the fleet about every new model version, from any endpoint.
+    std::weak_ptr<LcmPublisher> weak = publisher_;
+    library_.AddModelListener([weak](const CachedModel& m) {
+      auto p = weak.lock();
+      if (!p) return;
+      model_update_v1 u;
+      u.utime = NowUtime();
+      u.job_id = tl_ingesting_job;
+      u.reason = tl_ingesting_job ? "identification" : "update";
+      u.model = ToLcm(m);
+      p->Publish(kLcmModelUpdateChannel, u);
+    });
+  }
+
+  ~LcmEndpointImpl() {
+    Stop();
+    publisher_->Close();
+  }
+
+  void Start() {
+    if (thread_.joinable()) return;
+    stop_ = false;
+    thread_ = std::thread([this] { Run(); });
+  }
+
+  void Stop() {
+    stop_ = true;
+    if (thread_.joinable()) thread_.join();
+  }
+
+ private:
+  // Per-job state of this process (the job itself lives in the Store).
+  struct JobProgress {
+    std::vector<StrokeData> strokes;  // complete strokes not yet ingested
+    std::vector<double> slip_fn_n, slip_v_mm_s;
+    std::set<int> done_strokes;  // reassembled (duplicates are ignored)
+  };
+
+  void Run() {
+    while (!stop_) {
+      try {
+        const int r = lcm_.handleTimeout(options_.poll_ms);
+        if (r < 0) {
+          std::cerr << "frictiond: lcm handleTimeout failed\n";
+          std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        }
+        for (const ReassemblyEvent& e : reassembler_.Poll(NowMonotonicS()))
+          OnReassemblyEvent(e);
+      } catch (const std::exception& e) {
+        // Nothing may leave the thread; a handler bug must not kill LCM.
+        std::cerr << "frictiond: lcm endpoint: " << e.what() << "\n";
+      }
+    }
+  }
+
+  void PublishError(const std::string& type,
+                    const std::string& request_id,
+                    const std::string& robot,
+                    std::int64_t job_id,
+                    int stroke,
+                    int seq,
+                    const std::string& field,
+                    const std::string& reason) {
+    error_v1 e;
+    e.utime = NowUtime();
+    e.message_type = type;
+    e.request_id = request_id.substr(0, kMaxTextField);
+    e.robot = robot.substr(0, kMaxTextField);
+    e.job_id = job_id;
+    e.stroke = stroke;
+    e.seq = seq;
+    e.field = field;
+    e.reason = reason;
+    publisher_->Publish(kLcmErrorChannel, e);
+  }
+
+  // --- queries --------------------------------------------------------------
+  void OnQuery(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    material_query_v1 q;
+    if (q.decode(rbuf->data, 0, rbuf->data_size) < 0) {
+      PublishError("material_query_v1",
+                   "",
+                   "",
+                   0,
+                   0,
+                   -1,
+                   "(encoding)",
+                   "material_query_v1: cannot decode " +
+                       std::to_string(rbuf->data_size) +
+                       " bytes (wrong type or truncated)");
+      return;
+    }
+    material_reply_v1 reply;
+    reply.utime = NowUtime();
+    reply.request_id = q.request_id.substr(0, kMaxTextField);
+    reply.robot = q.robot.substr(0, kMaxTextField);
+    reply.material = q.material;
+    reply.fingertip = q.fingertip.empty() ? "default" : q.fingertip;
+    reply.job_id = 0;
+    reply.recognition_score = 0;
+    reply.model.n_terms = 0;
+    reply.model.n_quantiles = 0;
+    reply.model.has_lugre = false;
+    auto reject = [&](const std::string& field, const std::string& why) {
+      reply.status = material_reply_v1::STATUS_ERROR;
+      reply.reason = why;
+      publisher_->Publish(kLcmReplyChannel, reply);
+      PublishError(
+          "material_query_v1", q.request_id, q.robot, 0, 0, -1, field, why);
+    };
+    if (q.request_id.size() > kMaxTextField)
+      return reject("request_id",
+                    "request_id: " + std::to_string(q.request_id.size()) +
+                        " characters (at most 128)");
+    if (q.robot.size() > kMaxTextField)
+      return reject("robot",
+                    "robot: " + std::to_string(q.robot.size()) +
+                        " characters (at most 128)");
+    if (q.image_size > 0)
+      return reject("image",
+                    "image: recognition over LCM is not supported; recognise "
+                    "with HTTP POST /v1/recognize and query by material id");
+    try {
+      auto model =
+          library_.RequireModel(q.material, reply.fingertip, "lcm:" + q.robot);
+      reply.status = material_reply_v1::STATUS_KNOWN;
+      reply.model = ToLcm(*model);
+      publisher_->Publish(kLcmReplyChannel, reply);
+    } catch (const RequestError& e) {
+      if (e.status() != 404 || !e.extra().contains("identification"))
+        return reject(e.field() == "id" ? "material" : e.field(), e.what());
+      const json& ident = e.extra()["identification"];
+      reply.status = material_reply_v1::STATUS_UNKNOWN;
+      reply.reason = e.what();
+      reply.job_id = ident.value("job_id", std::int64_t{0});
+      publisher_->Publish(kLcmReplyChannel, reply);
+      PublishIdentificationRequest(reply.job_id,
+                                   q.request_id,
+                                   q.robot,
+                                   q.material,
+                                   reply.fingertip,
+                                   ident.at("stroke"),
+                                   /*stroke=*/0,
+                                   std::nullopt);
+    }
+  }
+
+  // Sends the stroke plan; `missing` narrows it to a follow-up region.
+  void PublishIdentificationRequest(std::int64_t job_id,
+                                    const std::string& request_id,
+                                    const std::string& robot,
+                                    const std::string& material,
+                                    const std::string& fingertip,
+                                    const json& plan,
+                                    int stroke,
+                                    const std::optional<SpanRect>& missing) {
+    identification_request_v1 r;
+    r.utime = NowUtime();
+    r.job_id = job_id;
+    r.stroke = stroke;
+    r.request_id = request_id.substr(0, kMaxTextField);
+    r.robot = robot.substr(0, kMaxTextField);
+    r.material = material;
+    r.fingertip = fingertip;
+    const SpanRect span = missing ? *missing : PlanSpan(plan);
+    r.fn_min_n = span.fn_min_n;
+    r.fn_max_n = span.fn_max_n;
+    r.v_min_mm_s = span.v_min_mm_s;
+    r.v_max_mm_s = span.v_max_mm_s;
+    r.max_duration_s = plan.value("max_duration_s", 120.0);
+    r.min_span_pct = plan.value("min_span_pct", 50.0);
+    r.follow_up = missing.has_value();
+    r.instructions =
+        std::string(missing ? "follow-up: the strokes so far covered too "
+                              "little of the Fn-v span; "
+                            : "") +
+        "slide the fingertip in repeated strokes with rests between them, "
+        "sweeping normal force over [fn_min_n, fn_max_n] and peak speed over "
+        "[v_min_mm_s, v_max_mm_s]; stream the samples as stroke_chunk_v1 on " +
+        kLcmStrokeChannel + " with job_id " + std::to_string(job_id) +
+        " and stroke " + std::to_string(stroke);
+    publisher_->Publish(kLcmIdentRequestChannel, r);
+  }
+
+  static SpanRect PlanSpan(const json& plan) {
+    SpanRect s;
+    s.fn_min_n = plan.at("fn_n").at(0).get<double>();
+    s.fn_max_n = plan.at("fn_n").at(1).get<double>();
+    s.v_min_mm_s = plan.at("v_mm_s").at(0).get<double>();
+    s.v_max_mm_s = plan.at("v_mm_s").at(1).get<double>();
+    return s;
+  }
+
+  // --- stroke chunks
+  // ----------------------------------------------------------
+  void OnChunk(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    stroke_chunk_v1 m;
+    if (m.decode(rbuf->data, 0, rbuf->data_size) < 0) {
+      PublishError("stroke_chunk_v1",
+                   "",
+                   "",
+                   0,
+                   0,
+                   -1,
+                   "(encoding)",
+                   "stroke_chunk_v1: cannot decode " +
+                       std::to_string(rbuf->data_size) +
+                       " bytes (wrong type or truncated)");
+      return;
+    }
+    auto reject = [&](const std::string& field, const std::string& why) {
+      PublishError("stroke_chunk_v1",
+                   "",
+                   m.robot,
+                   m.job_id,
+                   m.stroke,
+                   m.seq,
+                   field,
+                   why);
+    };
+    const std::string fingertip = m.fingertip.empty() ? "default" : m.fingertip;
+    if (m.robot.size() > kMaxTextField)
+      return reject("robot",
+                    "robot: " + std::to_string(m.robot.size()) +
+                        " characters (at most 128)");
+    // The job must exist, be open and belong to the named pair.
+    std::optional<IdentificationJob> job;
+    if (m.job_id > 0) job = library_.store().GetJob(m.job_id);
+    if (!job)
+      return reject("job_id",
+                    "job_id = " + std::to_string(m.job_id) +
+                        " (no such identification job; query the "
+                        "material first)");
+    if (job->state == "fitted" || job->state == "failed")
+      return reject("job_id",
+                    "job_id = " + std::to_string(m.job_id) + " (the job is " +
+                        job->state + "; query the material again)");
+    if (m.material != job->material)
+      return reject("material",
+                    "material = '" + m.material.substr(0, 64) + "' (job " +
+                        std::to_string(job->id) + " is for '" + job->material +
+                        "')");
+    if (fingertip != job->fingertip)
+      return reject("fingertip",
+                    "fingertip = '" + fingertip.substr(0, 64) + "' (job " +
+                        std::to_string(job->id) + " is for '" + job->fingertip +
+                        "')");
+    JobProgress& jp = jobs_[job->id];
+    if (jp.done_strokes.count(m.stroke)) return;  // late duplicate
+    if (m.stroke >= options_.max_strokes_per_job)
+      return reject("stroke",
+                    "stroke = " + std::to_string(m.stroke) + " (at most " +
+                        std::to_string(options_.max_strokes_per_job) +
+                        " strokes per job)");
+    StrokeChunk c;
+    c.job_id = m.job_id;
+    c.stroke = m.stroke;
+    c.seq = m.seq;
+    c.total_chunks = m.total_chunks;
+    c.last = m.last;
+    c.t_s = std::move(m.t_s);
+    c.fn_n = std::move(m.fn_n);
+    c.ft_n = std::move(m.ft_n);
+    c.v_mm_s = std::move(m.v_mm_s);
+    ChunkOutcome outcome;
+    try {
+      outcome = reassembler_.Add(c, NowMonotonicS());
+    } catch (const std::invalid_argument& e) {
+      return reject(FieldOf(e.what()), e.what());
+    }
+    if (outcome == ChunkOutcome::kDuplicate) return;
+    if (job->state == "requested") {
+      library_.store().UpdateJob(job->id,
+                                 "stroking",
+                                 "receiving stroke " +
+                                     std::to_string(m.stroke) + " from " +
+                                     (m.robot.empty() ? "a robot" : m.robot));
+      job->state = "stroking";
+    }
+    const StrokeKey key{c.job_id, c.stroke};
+    if (outcome == ChunkOutcome::kAccepted) {
+      if (auto p = reassembler_.Progress(key))
+        PublishProgress(*job,
+                        m.robot,
+                        *p,
+                        "stroking",
+                        -1,
+                        0,
+                        "chunk " + std::to_string(c.seq) + " received",
+                        /*with_missing=*/false);
+      return;
+    }
+    OnStrokeComplete(*job, m.robot, key);
+  }
+
+  void PublishProgress(const IdentificationJob& job,
+                       const std::string& robot,
+                       const StrokeProgress& p,
+                       const std::string& state,
+                       double span_pct,
+                       int version,
+                       const std::string& detail,
+                       bool with_missing) {
+    coverage_progress_v1 out;
+    out.utime = NowUtime();
+    out.job_id = job.id;
+    out.stroke = p.key.stroke;
+    out.material = job.material;
+    out.fingertip = job.fingertip;
+    out.robot = robot.substr(0, kMaxTextField);
+    out.state = state;
+    out.chunks_received = p.chunks_received;
+    out.chunks_expected = p.chunks_expected;
+    if (with_missing) out.missing_seqs = p.missing;
+    out.n_missing = static_cast<int32_t>(out.missing_seqs.size());
+    out.samples = static_cast<int64_t>(p.samples);
+    out.span_pct = span_pct;
+    out.min_span_pct = library_.options().plan.min_span_pct;
+    out.model_version = version;
+    out.detail = detail;
+    publisher_->Publish(kLcmProgressChannel, out);
+  }
+
+  void OnReassemblyEvent(const ReassemblyEvent& e) {
+    auto job = library_.store().GetJob(e.progress.key.job_id);
+    if (!job) return;
+    if (e.kind == ReassemblyEvent::Kind::kResend) {
+      PublishProgress(*job,
+                      "",
+                      e.progress,
+                      job->state,
+                      -1,
+                      0,
+                      "resend: " + e.reason,
+                      /*with_missing=*/true);
+      return;
+    }
+    PublishError("stroke_chunk_v1",
+                 "",
+                 "",
+                 job->id,
+                 e.progress.key.stroke,
+                 -1,
+                 "seq",
+                 e.reason);
+    PublishProgress(*job,
+                    "",
+                    e.progress,
+                    job->state,
+                    -1,
+                    0,
+                    e.reason,
+                    /*with_missing=*/true);
+  }
+
+  void OnStrokeComplete(IdentificationJob job,
+                        const std::string& robot,
+                        const StrokeKey& key) {
+    const StrokeProgress progress = *reassembler_.Progress(key);
+    JobProgress& jp = jobs_[job.id];
+    const json plan = json::parse(job.plan_json);
+    StrokeData stroke;
+    try {
+      stroke = reassembler_.Take(key);
+      const double duration_s = stroke.t_s.back() - stroke.t_s.front();
+      const double max_s = plan.value("max_duration_s", 120.0);
+      if (!(duration_s <= max_s))
+        throw std::invalid_argument(
+            "t_s: the stroke lasts " + std::to_string(duration_s) +
+            " s (the plan allows max_duration_s = " + std::to_string(max_s) +
+            " s)");
+    } catch (const std::invalid_argument& e) {
+      PublishError("stroke_chunk_v1",
+                   "",
+                   robot,
+                   job.id,
+                   key.stroke,
+                   -1,
+                   FieldOf(e.what()),
+                   e.what());
+      PublishProgress(job,
+                      robot,
+                      progress,
+                      job.state,
+                      -1,
+                      0,
+                      std::string("stroke rejected: ") + e.what(),
+                      false);
+      return;
+    }
+    jp.done_strokes.insert(key.stroke);
+    // Span coverage of the job's slipping samples (paper 000 III-E): label
+    // slip as the fit will (the pair's labelling, else the defaults).
+    SlipLabelOptions labelling;
+    if (auto prev = library_.FindModel(job.material, job.fingertip);
+        prev && prev->set.stochastic)
+      labelling = prev->set.stochastic->labelling;
+    {
+      StrokeData labelled = stroke;
+      EnsureLabels(&labelled, labelling);
+      const std::vector<bool> mask = CalcFitMask(labelled, labelling);
+      for (std::size_t i = 0; i < labelled.size(); ++i) {
+        if (!mask[i]) continue;
+        jp.slip_fn_n.push_back(labelled.fn_n[i]);
+        jp.slip_v_mm_s.push_back(labelled.v_mm_s[i]);
+      }
+    }
+    jp.strokes.push_back(std::move(stroke));
+    const SpanRect plan_span = PlanSpan(plan);
+    const SpanCoverage cov =
+        CalcSpanCoverage(jp.slip_fn_n, jp.slip_v_mm_s, plan_span);
+    const double min_pct = plan.value("min_span_pct", 50.0);
+    char span_text[160];
+    std::snprintf(span_text,
+                  sizeof span_text,
+                  "span %.1f %% of the plan (needs %.1f %%) from %d slipping "
+                  "samples in %zu stroke(s)",
+                  cov.span_pct,
+                  min_pct,
+                  cov.samples,
+                  jp.strokes.size());
+    if (cov.span_pct < min_pct) {
+      if (static_cast<int>(jp.strokes.size()) >= options_.max_strokes_per_job) {
+        const std::string why = std::string("too little span coverage: ") +
+                                span_text + " after the maximum of " +
+                                std::to_string(options_.max_strokes_per_job) +
+                                " strokes";
+        library_.store().UpdateJob(job.id, "failed", why);
+        PublishProgress(
+            job, robot, progress, "failed", cov.span_pct, 0, why, false);
+        jobs_.erase(job.id);
+        return;
+      }
+      // A follow-up stroke for the missing region instead of a weak model.
+      char region[200];
+      std::snprintf(region,
+                    sizeof region,
+                    "; follow-up stroke %d asked for fn_n %.2f-%.2f N, "
+                    "v_mm_s %.1f-%.1f mm/s",
+                    key.stroke + 1,
+                    cov.missing.fn_min_n,
+                    cov.missing.fn_max_n,
+                    cov.missing.v_min_mm_s,
+                    cov.missing.v_max_mm_s);
+      const std::string detail = span_text + std::string(region);
+      library_.store().UpdateJob(job.id, "stroking", detail);
+      PublishProgress(
+          job, robot, progress, "stroking", cov.span_pct, 0, detail, false);
+      PublishIdentificationRequest(job.id,
+                                   "",
+                                   robot,
+                                   job.material,
+                                   job.fingertip,
+                                   plan,
+                                   key.stroke + 1,
+                                   cov.missing);
+      return;
+    }
+    library_.store().UpdateJob(job.id, "enough_coverage", span_text);
+    PublishProgress(job,
+                    robot,
+                    progress,
+                    "enough_coverage",
+                    cov.span_pct,
+                    0,
+                    span_text,
+                    false);
+    // One upload of all the job's strokes: later strokes are shifted to
+    // start 1 s after the previous one ended (a gap = an unrecorded rest).
+    StrokeData all;
+    for (const StrokeData& s : jp.strokes) {
+      StrokeData shifted = s;
+      if (!all.empty()) {
+        const double shift = all.t_s.back() + 1.0 - s.t_s.front();
+        for (double& t : shifted.t_s) t += shift;
+      }
+      all.Append(shifted);
+    }
+    IngestOptions io;
+    io.fingertip = job.fingertip;
+    io.robot = ("lcm:" + robot).substr(0, 128);
+    struct IngestingJob {  // the model listener reads it on this thread
+      explicit IngestingJob(std::int64_t id) { tl_ingesting_job = id; }
+      ~IngestingJob() { tl_ingesting_job = 0; }
+    };
+    try {
+      const IngestingJob ingesting(job.id);
+      const IngestResult r =
+          library_.IngestStrokes(job.material, FormatStrokeCsv(all), io);
+      const std::string detail =
+          "fitted version " + std::to_string(r.version) + " (" + r.fit_status +
+          (r.fit_note.empty() ? "" : ": " + r.fit_note) + "); " + span_text;
+      library_.store().UpdateJob(job.id, "fitted", detail);
+      PublishProgress(job,
+                      robot,
+                      progress,
+                      "fitted",
+                      cov.span_pct,
+                      r.version,
+                      detail,
+                      false);
+    } catch (const RequestError& e) {
+      const std::string why = std::string("identification failed: ") + e.what();
+      library_.store().UpdateJob(job.id, "failed", why);
+      PublishError("stroke_chunk_v1",
+                   "",
+                   robot,
+                   job.id,
+                   key.stroke,
+                   -1,
+                   e.field(),
+                   e.what());
+      PublishProgress(
+          job, robot, progress, "failed", cov.span_pct, 0, why, false);
+    }
+    jobs_.erase(job.id);
+  }
+
+  FrictionLibrary& library_;
+  LcmEndpointOptions options_;
+  lcm::LCM lcm_;
+  std::shared_ptr<LcmPublisher> publisher_;
+  StrokeReassembler reassembler_;
+  std::map<std::int64_t, JobProgress> jobs_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+}  // namespace internal
+
+LcmEndpoint::LcmEndpoint(FrictionLibrary& library, LcmEndpointOptions options)
+    : impl_(std::make_unique<internal::LcmEndpointImpl>(library,
+                                                        std::move(options))) {}
+LcmEndpoint::~LcmEndpoint() = default;
+void LcmEndpoint::Start() { impl_->Start(); }
+void LcmEndpoint::Stop() { impl_->Stop(); }
+bool HaveLcmEndpoint() { return true; }
+
+}  // namespace frictiond
+
+#else  // !FRICTIOND_HAVE_LCM
+
+namespace frictiond {
+namespace internal {
+class LcmEndpointImpl {};
+}  // namespace internal
+
+LcmEndpoint::LcmEndpoint(FrictionLibrary&, LcmEndpointOptions options) {
+  throw std::invalid_argument("--lcm " + options.url +
+                              ": this build has no LCM support "
+                              "(FRICTIOND_WITH_LCM=OFF)");
+}
+LcmEndpoint::~LcmEndpoint() = default;
+void LcmEndpoint::Start() {}
+void LcmEndpoint::Stop() {}
+bool HaveLcmEndpoint() { return false; }
+
+}  // namespace frictiond
+
+#endif  // FRICTIOND_HAVE_LCM
