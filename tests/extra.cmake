@@ -16,3 +16,8 @@ foreach(_t http_api_test bad_input_test crash_safety_test)
     set_tests_properties(${_t} PROPERTIES LABELS "daemon")
   endif()
 endforeach()
+
+# LCM tests and the simulated robot (need the generated LCM types).
+if(TARGET frictiond_lcmtypes)
+  add_subdirectory(lcm)
+endif()

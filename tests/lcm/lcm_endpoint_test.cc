@@ -1,0 +1,238 @@
+// The daemon's LCM endpoint in process (FrictionLibrary on an in-memory
+// store + LcmEndpoint) on a real udpm provider: queries, bad-message
+// rejection naming the field with nothing stored, resend requests and
+// give-up for missing chunks.
+#include "frictiond/server/lcm_endpoint.h"
+
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "lcm_test_inbox.h"
+#include "robot_simulator.h"
+
+namespace frictiond {
+namespace {
+
+using testing::LcmInbox;
+
+class LcmEndpointTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    url_ = testing::MakeTestLcmUrl(11);
+    std::string why;
+    if (!testing::CheckLcmLoopback(url_, &why)) GTEST_SKIP() << why;
+    library_ = std::make_unique<FrictionLibrary>(OpenStore(":memory:"));
+    LcmEndpointOptions o;
+    o.url = url_;
+    o.reassembly.resend_after_s = 0.2;
+    o.reassembly.give_up_after_s = 1.0;
+    endpoint_ = std::make_unique<LcmEndpoint>(*library_, o);
+    endpoint_->Start();
+    inbox_ = std::make_unique<LcmInbox>(url_);
+    ASSERT_TRUE(inbox_->good());
+  }
+  void TearDown() override {
+    if (endpoint_) endpoint_->Stop();
+  }
+
+  material_reply_v1 Query(const std::string& material) {
+    material_query_v1 q;
+    q.utime = 0;
+    q.request_id = "r" + std::to_string(++request_counter_);
+    q.robot = "test";
+    q.material = material;
+    q.fingertip = "";
+    q.image_size = 0;
+    inbox_->lcm().publish(kLcmQueryChannel, &q);
+    material_reply_v1 out;
+    out.status = -1;
+    inbox_->WaitFor([&] {
+      for (const auto& r : inbox_->replies) {
+        if (r.request_id == q.request_id) {
+          out = r;
+          return true;
+        }
+      }
+      return false;
+    });
+    return out;
+  }
+
+  // Sends a chunk and waits for the error it must cause; returns it.
+  error_v1 ExpectRejected(const stroke_chunk_v1& c) {
+    const std::size_t before = inbox_->errors.size();
+    inbox_->lcm().publish(kLcmStrokeChannel, &c);
+    error_v1 e;
+    e.field = "(no error received)";
+    if (inbox_->WaitFor([&] { return inbox_->errors.size() > before; }))
+      e = inbox_->errors[before];
+    return e;
+  }
+
+  static stroke_chunk_v1 MakeChunk(std::int64_t job_id,
+                                   int seq,
+                                   int total,
+                                   bool last) {
+    stroke_chunk_v1 c;
+    c.utime = 0;
+    c.job_id = job_id;
+    c.stroke = 0;
+    c.robot = "test";
+    c.material = "felt";
+    c.fingertip = "default";
+    c.seq = seq;
+    c.total_chunks = total;
+    c.last = last;
+    c.n_samples = 4;
+    for (int i = 0; i < 4; ++i) {
+      c.t_s.push_back(seq * 0.04 + i * 0.01);
+      c.fn_n.push_back(2.0);
+      c.ft_n.push_back(1.0);
+      c.v_mm_s.push_back(20.0);
+    }
+    return c;
+  }
+
+  void ExpectNothingStored(const std::string& material) {
+    EXPECT_TRUE(library_->store().ListStrokes(material, "default").empty());
+    EXPECT_FALSE(library_->store().GetLatestModel(material, "default"));
+    EXPECT_FALSE(library_->store().GetMaterial(material));
+  }
+
+  std::string url_;
+  std::unique_ptr<FrictionLibrary> library_;
+  std::unique_ptr<LcmEndpoint> endpoint_;
+  std::unique_ptr<LcmInbox> inbox_;
+  int request_counter_ = 0;
+};
+
+TEST_F(LcmEndpointTest, UnknownMaterialOpensAJobAndSendsThePlan) {
+  const material_reply_v1 r = Query("felt");
+  ASSERT_EQ(r.status, +material_reply_v1::STATUS_UNKNOWN) << r.reason;
+  ASSERT_GT(r.job_id, 0);
+  ASSERT_TRUE(inbox_->WaitFor([&] { return !inbox_->requests.empty(); }));
+  const identification_request_v1& plan = inbox_->requests.back();
+  EXPECT_EQ(plan.job_id, r.job_id);
+  EXPECT_EQ(plan.material, "felt");
+  EXPECT_FALSE(plan.follow_up);
+  const StrokePlanOptions defaults;
+  EXPECT_DOUBLE_EQ(plan.fn_min_n, defaults.fn_min_n);
+  EXPECT_DOUBLE_EQ(plan.fn_max_n, defaults.fn_max_n);
+  EXPECT_DOUBLE_EQ(plan.v_max_mm_s, defaults.v_max_mm_s);
+  EXPECT_DOUBLE_EQ(plan.min_span_pct, defaults.min_span_pct);
+  auto job = library_->store().GetJob(r.job_id);
+  ASSERT_TRUE(job);
+  EXPECT_EQ(job->state, "requested");
+  EXPECT_EQ(job->requested_by, "lcm:test");
+  // Asking again finds the same open job.
+  EXPECT_EQ(Query("felt").job_id, r.job_id);
+}
+
+TEST_F(LcmEndpointTest, BadQueryIsRejectedNamingTheField) {
+  const material_reply_v1 r = Query("no spaces allowed");
+  EXPECT_EQ(r.status, +material_reply_v1::STATUS_ERROR);
+  EXPECT_NE(r.reason.find("must match"), std::string::npos) << r.reason;
+  ASSERT_TRUE(inbox_->WaitFor([&] { return !inbox_->errors.empty(); }));
+  EXPECT_EQ(inbox_->errors.back().field, "material");
+  EXPECT_EQ(inbox_->errors.back().message_type, "material_query_v1");
+  EXPECT_TRUE(library_->store().ListJobs(false).empty());
+}
+
+TEST_F(LcmEndpointTest, BadChunksAreRejectedNamingTheFieldAndStoreNothing) {
+  const material_reply_v1 r = Query("felt");
+  ASSERT_EQ(r.status, +material_reply_v1::STATUS_UNKNOWN) << r.reason;
+  const std::int64_t job = r.job_id;
+
+  stroke_chunk_v1 c = MakeChunk(job + 1000, 0, 2, false);
+  error_v1 e = ExpectRejected(c);
+  EXPECT_EQ(e.field, "job_id") << e.reason;
+  EXPECT_NE(e.reason.find("no such identification job"), std::string::npos);
+
+  c = MakeChunk(job, 0, 2, false);
+  c.fn_n[1] = std::numeric_limits<double>::quiet_NaN();
+  e = ExpectRejected(c);
+  EXPECT_EQ(e.field, "fn_n[1]") << e.reason;
+  EXPECT_EQ(e.job_id, job);
+
+  c = MakeChunk(job, 0, 2, false);
+  c.fn_n[0] = -0.5;
+  e = ExpectRejected(c);
+  EXPECT_EQ(e.field, "fn_n[0]") << e.reason;
+  EXPECT_NE(e.reason.find("must be finite and > 0"), std::string::npos);
+
+  c = MakeChunk(job, 0, 2, false);
+  c.v_mm_s[3] = -1;
+  EXPECT_EQ(ExpectRejected(c).field, "v_mm_s[3]");
+
+  c = MakeChunk(job, 3, 2, false);
+  e = ExpectRejected(c);
+  EXPECT_EQ(e.field, "seq") << e.reason;
+
+  c = MakeChunk(job, 0, 0, false);
+  c.n_samples = 0;
+  c.t_s.clear();
+  c.fn_n.clear();
+  c.ft_n.clear();
+  c.v_mm_s.clear();
+  EXPECT_EQ(ExpectRejected(c).field, "n_samples");
+
+  c = MakeChunk(job, 0, 2, false);
+  c.material = "other";
+  EXPECT_EQ(ExpectRejected(c).field, "material");
+
+  // Wrong sizes on the wire: a truncated encoding.
+  c = MakeChunk(job, 0, 2, false);
+  std::vector<std::uint8_t> bytes(c.getEncodedSize());
+  c.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  const std::size_t before = inbox_->errors.size();
+  inbox_->lcm().publish(
+      kLcmStrokeChannel, bytes.data(), static_cast<unsigned>(bytes.size() - 9));
+  ASSERT_TRUE(inbox_->WaitFor([&] { return inbox_->errors.size() > before; }));
+  EXPECT_EQ(inbox_->errors[before].field, "(encoding)");
+
+  // Nothing from the rejected chunks was stored and the job did not move.
+  ExpectNothingStored("felt");
+  EXPECT_EQ(library_->store().GetJob(job)->state, "requested");
+}
+
+TEST_F(LcmEndpointTest, MissingChunkIsAskedAgainThenDropped) {
+  const material_reply_v1 r = Query("felt");
+  ASSERT_EQ(r.status, +material_reply_v1::STATUS_UNKNOWN);
+  const stroke_chunk_v1 first = MakeChunk(r.job_id, 0, 0, false);
+  inbox_->lcm().publish(kLcmStrokeChannel, &first);
+  const stroke_chunk_v1 last = MakeChunk(r.job_id, 2, 3, true);
+  inbox_->lcm().publish(kLcmStrokeChannel, &last);
+  // The resend request names exactly the missing seq.
+  ASSERT_TRUE(inbox_->WaitFor(
+      [&] {
+        for (const auto& p : inbox_->progress)
+          if (p.n_missing > 0) return true;
+        return false;
+      },
+      3.0));
+  for (const auto& p : inbox_->progress) {
+    if (p.n_missing == 0) continue;
+    EXPECT_EQ(p.job_id, r.job_id);
+    ASSERT_EQ(p.missing_seqs.size(), 1u);
+    EXPECT_EQ(p.missing_seqs[0], 1);
+    EXPECT_EQ(p.chunks_expected, 3);
+    break;
+  }
+  EXPECT_EQ(library_->store().GetJob(r.job_id)->state, "stroking");
+  // Never resent: the stroke is dropped with a reason.
+  ASSERT_TRUE(inbox_->WaitFor(
+      [&] {
+        for (const auto& e : inbox_->errors)
+          if (e.reason.find("dropped") != std::string::npos) return true;
+        return false;
+      },
+      4.0));
+  ExpectNothingStored("felt");
+}
+
+}  // namespace
+}  // namespace frictiond

@@ -1,0 +1,310 @@
+#include "robot_simulator.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <random>
+#include <sstream>
+
+#include <lcm/lcm-cpp.hpp>
+#include <unistd.h>
+
+#include "frictiond/coverage_progress_v1.hpp"
+#include "frictiond/error_v1.hpp"
+#include "frictiond/identification_request_v1.hpp"
+#include "frictiond/material_query_v1.hpp"
+#include "frictiond/material_reply_v1.hpp"
+#include "frictiond/model_update_v1.hpp"
+#include "frictiond/proto/lcm_channels.h"
+#include "frictiond/stroke_chunk_v1.hpp"
+
+namespace frictiond::testing {
+
+namespace {
+
+double NowS() {
+  return std::chrono::duration<double>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+std::int64_t Utime() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+material_query_v1 MakeQuery(const std::string& request_id,
+                            const std::string& robot,
+                            const std::string& material,
+                            const std::string& fingertip) {
+  material_query_v1 q;
+  q.utime = Utime();
+  q.request_id = request_id;
+  q.robot = robot;
+  q.material = material;
+  q.fingertip = fingertip;
+  q.image_size = 0;
+  return q;
+}
+
+// Collects everything the daemon says; the conversation logic polls it.
+struct Inbox {
+  std::vector<material_reply_v1> replies;
+  std::vector<identification_request_v1> requests;
+  std::vector<coverage_progress_v1> progress;
+  std::vector<model_update_v1> updates;
+  std::vector<error_v1> errors;
+  void OnReply(const lcm::ReceiveBuffer*,
+               const std::string&,
+               const material_reply_v1* m) {
+    replies.push_back(*m);
+  }
+  void OnRequest(const lcm::ReceiveBuffer*,
+                 const std::string&,
+                 const identification_request_v1* m) {
+    requests.push_back(*m);
+  }
+  void OnProgress(const lcm::ReceiveBuffer*,
+                  const std::string&,
+                  const coverage_progress_v1* m) {
+    progress.push_back(*m);
+  }
+  void OnUpdate(const lcm::ReceiveBuffer*,
+                const std::string&,
+                const model_update_v1* m) {
+    updates.push_back(*m);
+  }
+  void OnError(const lcm::ReceiveBuffer*,
+               const std::string&,
+               const error_v1* m) {
+    errors.push_back(*m);
+  }
+  void SubscribeAll(lcm::LCM& lcm) {
+    lcm.subscribe(kLcmReplyChannel, &Inbox::OnReply, this);
+    lcm.subscribe(kLcmIdentRequestChannel, &Inbox::OnRequest, this);
+    lcm.subscribe(kLcmProgressChannel, &Inbox::OnProgress, this);
+    lcm.subscribe(kLcmModelUpdateChannel, &Inbox::OnUpdate, this);
+    lcm.subscribe(kLcmErrorChannel, &Inbox::OnError, this);
+  }
+};
+
+}  // namespace
+
+std::string MakeTestLcmUrl(int salt) {
+  const int port = 20000 + (static_cast<int>(getpid()) * 7 + salt) % 30000;
+  return "udpm://239.255.76.67:" + std::to_string(port) + "?ttl=0";
+}
+
+bool CheckLcmLoopback(const std::string& url, std::string* why) {
+  const std::string need =
+      "LCM udpm needs multicast on loopback: run inside `unshare -n` with `ip "
+      "link set lo up; ip link set lo multicast on; ip route add 224.0.0.0/4 "
+      "dev lo` (deploy/test.sh does this)";
+  lcm::LCM lcm(url);
+  if (!lcm.good()) {
+    *why = "cannot create LCM provider " + url + ". " + need;
+    return false;
+  }
+  struct Probe {
+    int received = 0;
+    void On(const lcm::ReceiveBuffer*, const std::string&) { ++received; }
+  } probe;
+  lcm.subscribe("FRICTIOND_TEST_PROBE", &Probe::On, &probe);
+  const char byte = 1;
+  for (int attempt = 0; attempt < 5 && probe.received == 0; ++attempt) {
+    lcm.publish("FRICTIOND_TEST_PROBE", &byte, 1);
+    lcm.handleTimeout(200);
+  }
+  if (probe.received == 0) {
+    *why = "a message published on " + url + " did not come back. " + need;
+    return false;
+  }
+  return true;
+}
+
+int QueryMaterialOnce(const std::string& url,
+                      const std::string& material,
+                      const std::string& fingertip,
+                      std::int64_t* job_id,
+                      double timeout_s) {
+  lcm::LCM lcm(url);
+  if (!lcm.good()) return -1;
+  Inbox inbox;
+  inbox.SubscribeAll(lcm);
+  const std::string request_id = "once-" + std::to_string(Utime());
+  const material_query_v1 q =
+      MakeQuery(request_id, "sim-robot", material, fingertip);
+  lcm.publish(kLcmQueryChannel, &q);
+  const double deadline = NowS() + timeout_s;
+  *job_id = 0;
+  int status = -1;
+  while (NowS() < deadline) {
+    lcm.handleTimeout(50);
+    for (const auto& r : inbox.replies) {
+      if (r.request_id == request_id) {
+        status = r.status;
+        *job_id = r.job_id;
+      }
+    }
+    if (status == material_reply_v1::STATUS_KNOWN ||
+        status == material_reply_v1::STATUS_ERROR)
+      return status;
+    if (status == material_reply_v1::STATUS_UNKNOWN) {
+      for (const auto& r : inbox.requests) {
+        if (r.job_id == *job_id) return status;
+      }
+    }
+  }
+  return status;
+}
+
+RobotSimResult RunRobotSimulation(const RobotSimOptions& o) {
+  RobotSimResult res;
+  auto log = [&](const std::string& s) { res.log.push_back(s); };
+  auto fail = [&](const std::string& why) {
+    res.ok = false;
+    res.why = why;
+    return res;
+  };
+  lcm::LCM lcm(o.url);
+  if (!lcm.good()) return fail("cannot create LCM provider " + o.url);
+  Inbox inbox;
+  inbox.SubscribeAll(lcm);
+  const std::string request_id = o.robot + "-q1";
+  const material_query_v1 q =
+      MakeQuery(request_id, o.robot, o.material, o.fingertip);
+  lcm.publish(kLcmQueryChannel, &q);
+  log("query " + o.material);
+
+  // Chunks of the stroke being streamed, by seq, for resends.
+  std::vector<stroke_chunk_v1> chunks;
+  int current_stroke = -1;
+  int held_back = -1;
+  std::size_t seen_requests = 0, seen_progress = 0, seen_errors = 0;
+  std::mt19937_64 rng(o.seed * 31 + 1);
+  const double deadline = NowS() + o.timeout_s;
+  bool got_reply = false;
+  while (NowS() < deadline) {
+    lcm.handleTimeout(20);
+    if (!got_reply) {
+      for (const auto& r : inbox.replies) {
+        if (r.request_id != request_id) continue;
+        got_reply = true;
+        res.reply_status = r.status;
+        res.job_id = r.job_id;
+        log("reply status " + std::to_string(r.status) + ": " + r.reason);
+        if (r.status != material_reply_v1::STATUS_UNKNOWN)
+          return fail("expected an unknown material, got status " +
+                      std::to_string(r.status) + " (" + r.reason + ")");
+      }
+      if (!got_reply) continue;
+    }
+    for (; seen_errors < inbox.errors.size(); ++seen_errors) {
+      const error_v1& e = inbox.errors[seen_errors];
+      if (e.job_id == res.job_id || e.request_id == request_id)
+        return fail("daemon rejected " + e.message_type + " (" + e.field +
+                    "): " + e.reason);
+    }
+    // A (follow-up) identification request: perform and stream the stroke.
+    for (; seen_requests < inbox.requests.size(); ++seen_requests) {
+      const identification_request_v1& r = inbox.requests[seen_requests];
+      if (r.job_id != res.job_id || r.stroke <= current_stroke) continue;
+      current_stroke = r.stroke;
+      if (r.follow_up) ++res.follow_ups;
+      SimulationSpec spec = o.truth;
+      spec.fn_min_n = r.fn_min_n;
+      spec.fn_max_n = r.fn_max_n;
+      spec.v_min_mm_s = r.v_min_mm_s;
+      spec.v_max_mm_s = r.v_max_mm_s;
+      if (o.narrow_first_stroke && r.stroke == 0)
+        spec.fn_max_n = r.fn_min_n + 0.25 * (r.fn_max_n - r.fn_min_n);
+      const StrokeData d = SimulateStrokes(spec, o.seed + r.stroke);
+      std::ostringstream s;
+      s << "stroke " << r.stroke << (r.follow_up ? " (follow-up)" : "")
+        << ": fn " << spec.fn_min_n << "-" << spec.fn_max_n << " N, v "
+        << spec.v_min_mm_s << "-" << spec.v_max_mm_s << " mm/s, " << d.size()
+        << " samples";
+      log(s.str());
+      chunks.clear();
+      const int n = static_cast<int>(d.size());
+      const int total = (n + o.chunk_samples - 1) / o.chunk_samples;
+      for (int k = 0; k < total; ++k) {
+        stroke_chunk_v1 c;
+        c.utime = Utime();
+        c.job_id = res.job_id;
+        c.stroke = r.stroke;
+        c.robot = o.robot;
+        c.material = o.material;
+        c.fingertip = o.fingertip;
+        c.seq = k;
+        // Announce the total only in the last chunk, as a streaming robot
+        // that does not know the length in advance would.
+        c.total_chunks = k == total - 1 ? total : 0;
+        c.last = k == total - 1;
+        const int b = k * o.chunk_samples;
+        const int e = std::min(n, b + o.chunk_samples);
+        c.t_s.assign(d.t_s.begin() + b, d.t_s.begin() + e);
+        c.fn_n.assign(d.fn_n.begin() + b, d.fn_n.begin() + e);
+        c.ft_n.assign(d.ft_n.begin() + b, d.ft_n.begin() + e);
+        c.v_mm_s.assign(d.v_mm_s.begin() + b, d.v_mm_s.begin() + e);
+        c.n_samples = e - b;
+        chunks.push_back(std::move(c));
+      }
+      std::vector<int> order(total);
+      for (int k = 0; k < total; ++k) order[k] = k;
+      if (o.reorder) std::shuffle(order.begin(), order.end(), rng);
+      held_back = o.hold_back && total > 2 ? 1 : -1;
+      for (int k : order) {
+        if (k == held_back) continue;
+        lcm.publish(kLcmStrokeChannel, &chunks[k]);
+        ++res.chunks_sent;
+        if (o.duplicate && k % 3 == 0) {
+          lcm.publish(kLcmStrokeChannel, &chunks[k]);
+          ++res.chunks_sent;
+        }
+        // Pace the stream a little: udpm on loopback drops bursts that
+        // overflow the receiver's socket buffer.
+        if (k % 8 == 7) lcm.handleTimeout(1);
+      }
+      ++res.strokes_sent;
+    }
+    for (; seen_progress < inbox.progress.size(); ++seen_progress) {
+      const coverage_progress_v1& p = inbox.progress[seen_progress];
+      if (p.job_id != res.job_id) continue;
+      if (p.span_pct >= 0) res.last_span_pct = p.span_pct;
+      if (p.state != "stroking" || p.n_missing > 0 || p.span_pct >= 0)
+        log("progress " + p.state + " stroke " + std::to_string(p.stroke) +
+            " missing " + std::to_string(p.n_missing) + ": " + p.detail);
+      if (p.n_missing > 0 && p.stroke == current_stroke) {
+        ++res.resend_requests;
+        for (int seq : p.missing_seqs) {
+          if (seq >= 0 && seq < static_cast<int>(chunks.size())) {
+            lcm.publish(kLcmStrokeChannel, &chunks[seq]);
+            ++res.chunks_sent;
+          }
+        }
+      }
+      if (p.state == "failed") return fail("job failed: " + p.detail);
+      if (p.state == "fitted") res.model_version = p.model_version;
+    }
+    if (res.model_version > 0) {
+      for (const auto& u : inbox.updates) {
+        if (u.job_id != res.job_id || u.model.version != res.model_version)
+          continue;
+        for (int i = 0; i < u.model.n_terms; ++i) {
+          res.coefficients[u.model.term_names[i]] = u.model.coefficients[i];
+          res.std_errors[u.model.term_names[i]] = u.model.std_errors[i];
+        }
+        res.sigma_eps = u.model.sigma_eps;
+        res.ok = true;
+        log("model_update version " + std::to_string(u.model.version));
+        return res;
+      }
+    }
+  }
+  return fail(got_reply ? "timed out waiting for the fitted model"
+                        : "timed out waiting for the reply");
+}
+
+}  // namespace frictiond::testing
