@@ -135,9 +135,12 @@ StrokeProgress StrokeReassembler::MakeProgress(const StrokeKey& key,
   out.chunks_received = static_cast<int>(p.chunks.size());
   out.chunks_expected = p.total;
   out.samples = p.samples;
-  // Without a known total, the gaps below the highest seq seen are missing.
-  const int upto =
-      p.total > 0 ? p.total : (p.chunks.empty() ? 0 : p.chunks.rbegin()->first);
+  // Without a known total, the gaps below the highest seq seen are missing,
+  // and so is the chunk after it (the end may have been lost; asking for it
+  // one at a time converges on the last chunk).
+  const int upto = p.total > 0        ? p.total
+                   : p.chunks.empty() ? 0
+                                      : p.chunks.rbegin()->first + 2;
   for (int s = 0; s < upto; ++s) {
     if (!p.chunks.count(s)) out.missing.push_back(s);
   }

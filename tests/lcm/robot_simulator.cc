@@ -5,6 +5,7 @@
 #include <cmath>
 #include <random>
 #include <sstream>
+#include <thread>
 
 #include <lcm/lcm-cpp.hpp>
 #include <unistd.h>
@@ -139,8 +140,13 @@ int QueryMaterialOnce(const std::string& url,
   const double deadline = NowS() + timeout_s;
   *job_id = 0;
   int status = -1;
+  double last_query_s = NowS();
   while (NowS() < deadline) {
     lcm.handleTimeout(50);
+    if (status < 0 && NowS() - last_query_s > 1.0) {
+      lcm.publish(kLcmQueryChannel, &q);  // UDP may lose a datagram
+      last_query_s = NowS();
+    }
     for (const auto& r : inbox.replies) {
       if (r.request_id == request_id) {
         status = r.status;
@@ -185,8 +191,15 @@ RobotSimResult RunRobotSimulation(const RobotSimOptions& o) {
   std::mt19937_64 rng(o.seed * 31 + 1);
   const double deadline = NowS() + o.timeout_s;
   bool got_reply = false;
+  double last_query_s = NowS();
   while (NowS() < deadline) {
     lcm.handleTimeout(20);
+    if (!got_reply && NowS() - last_query_s > 1.0) {
+      // UDP may lose a datagram: ask again (the daemon answers idempotently).
+      lcm.publish(kLcmQueryChannel, &q);
+      last_query_s = NowS();
+      log("query resent");
+    }
     if (!got_reply) {
       for (const auto& r : inbox.replies) {
         if (r.request_id != request_id) continue;
@@ -263,9 +276,10 @@ RobotSimResult RunRobotSimulation(const RobotSimOptions& o) {
           lcm.publish(kLcmStrokeChannel, &chunks[k]);
           ++res.chunks_sent;
         }
-        // Pace the stream a little: udpm on loopback drops bursts that
-        // overflow the receiver's socket buffer.
-        if (k % 8 == 7) lcm.handleTimeout(1);
+        // Pace the stream a little (a robot streams as it samples): udpm
+        // drops datagrams that overflow the receiver's socket buffer, which
+        // the resend requests then repair.
+        std::this_thread::sleep_for(std::chrono::microseconds(300));
       }
       ++res.strokes_sent;
     }

@@ -76,7 +76,9 @@ struct StrokeProgress {
   int chunks_received = 0;
   int chunks_expected = 0;  ///< 0 while unknown
   std::size_t samples = 0;
-  std::vector<int> missing;  ///< seqs below the known (or highest) total
+  /// Seqs to ask for: the gaps below the total when it is known; else the
+  /// gaps below the highest seq received plus the seq after it.
+  std::vector<int> missing;
 };
 
 /// Something the owner must act on (from Poll()).
