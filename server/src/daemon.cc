@@ -124,11 +124,12 @@ int Daemon::Start() {
   RegisterPaper000Routes(*http_, *library_);
   RegisterLuGreFeature(*http_, *library_);
   RegisterDiagnosisRoutes(*http_, *library_);
-  RegisterRecognitionRoutes(*http_, *library_);
+  RecognizeImageFn recognize = RegisterRecognitionRoutes(*http_, *library_);
   const int port = http_->Bind(config_.bind, config_.port);
   if (config_.lcm_url != "none") {
     LcmEndpointOptions lo_lcm;
     lo_lcm.url = config_.lcm_url;
+    lo_lcm.recognize = recognize;
     lcm_ = std::make_unique<LcmEndpoint>(*library_, lo_lcm);
     lcm_->Start();
     std::cerr << "frictiond: LCM endpoint on " << config_.lcm_url << "\n";

@@ -274,10 +274,31 @@ class LcmEndpointImpl {
       return reject("robot",
                     "robot: " + std::to_string(q.robot.size()) +
                         " characters (at most 128)");
-    if (q.image_size > 0)
-      return reject("image",
-                    "image: recognition over LCM is not supported; recognise "
-                    "with HTTP POST /v1/recognize and query by material id");
+    if (q.image_size > 0) {
+      // The recognition hook (paper 000 Fig. 11: material recognition);
+      // below its confidence threshold the material is unknown and the
+      // query's material id names the new material.
+      if (!options_.recognize)
+        return reject("image",
+                      "image: this frictiond has no recognition (built "
+                      "without OpenCV); query by material id");
+      ImageRecognition r;
+      try {
+        r = options_.recognize(std::string(q.image.begin(), q.image.end()));
+      } catch (const std::invalid_argument& e) {
+        return reject("image", std::string("image: ") + e.what());
+      }
+      if (!r.unknown && !r.candidates.empty()) {
+        q.material = r.candidates.front().first;
+        reply.material = q.material;
+        reply.recognition_score = r.candidates.front().second;
+      } else if (q.material.empty()) {
+        return reject("material",
+                      "material: empty, and the image was not recognised "
+                      "(unknown material); give the id the new material "
+                      "should get to start its identification");
+      }
+    }
     try {
       auto model =
           library_.RequireModel(q.material, reply.fingertip, "lcm:" + q.robot);

@@ -51,7 +51,8 @@ std::string ImageMime(const HttpRequest& req) {
 
 }  // namespace
 
-void RegisterRecognitionRoutes(HttpServer& http, FrictionLibrary& lib) {
+RecognizeImageFn RegisterRecognitionRoutes(HttpServer& http,
+                                           FrictionLibrary& lib) {
   auto recognizer = std::make_shared<MaterialRecognizer>();
   int stale = 0;
   for (const ImageRecord& img : lib.store().ListImages()) {
@@ -130,11 +131,23 @@ void RegisterRecognitionRoutes(HttpServer& http, FrictionLibrary& lib) {
         }
         return HttpResponse::Json(200, out);
       });
+  // The same hook for the LCM endpoint (material_query_v1 with an image).
+  return [&lib, recognizer](const std::string& image) {
+    const RecognitionResult r = recognizer->Recognize(image);
+    ImageRecognition out;
+    for (const RecognitionCandidate& c : r.candidates) {
+      if (lib.store().GetMaterial(c.material))
+        out.candidates.emplace_back(c.material, c.score);
+    }
+    out.unknown = r.unknown || out.candidates.empty();
+    return out;
+  };
 }
 
 #else
 
-void RegisterRecognitionRoutes(HttpServer& http, FrictionLibrary& /*lib*/) {
+RecognizeImageFn RegisterRecognitionRoutes(HttpServer& http,
+                                           FrictionLibrary& /*lib*/) {
   auto unavailable = [](const HttpRequest&) -> HttpResponse {
     return HttpResponse::Error(
         501,
@@ -143,6 +156,7 @@ void RegisterRecognitionRoutes(HttpServer& http, FrictionLibrary& /*lib*/) {
   };
   http.Route("POST", "/v1/materials/{id}/images", unavailable);
   http.Route("POST", "/v1/recognize", unavailable);
+  return {};
 }
 
 #endif

@@ -30,6 +30,18 @@ class LcmEndpointTest : public ::testing::Test {
     o.url = url_;
     o.reassembly.resend_after_s = 0.2;
     o.reassembly.give_up_after_s = 1.0;
+    // A stand-in recognition hook: "IMG:<id>" is recognised as <id>,
+    // "IMG-BAD" cannot be decoded, anything else is unknown.
+    o.recognize = [](const std::string& image) {
+      if (image == "IMG-BAD")
+        throw std::invalid_argument("cannot decode the image (not PNG/JPEG)");
+      ImageRecognition r;
+      if (image.rfind("IMG:", 0) == 0) {
+        r.unknown = false;
+        r.candidates.emplace_back(image.substr(4), 0.87);
+      }
+      return r;
+    };
     endpoint_ = std::make_unique<LcmEndpoint>(*library_, o);
     endpoint_->Start();
     inbox_ = std::make_unique<LcmInbox>(url_);
@@ -39,14 +51,16 @@ class LcmEndpointTest : public ::testing::Test {
     if (endpoint_) endpoint_->Stop();
   }
 
-  material_reply_v1 Query(const std::string& material) {
+  material_reply_v1 Query(const std::string& material,
+                          const std::string& image = "") {
     material_query_v1 q;
     q.utime = 0;
     q.request_id = "r" + std::to_string(++request_counter_);
     q.robot = "test";
     q.material = material;
     q.fingertip = "";
-    q.image_size = 0;
+    q.image.assign(image.begin(), image.end());
+    q.image_size = static_cast<int32_t>(q.image.size());
     inbox_->lcm().publish(kLcmQueryChannel, &q);
     material_reply_v1 out;
     out.status = -1;
@@ -140,6 +154,29 @@ TEST_F(LcmEndpointTest, BadQueryIsRejectedNamingTheField) {
   EXPECT_EQ(inbox_->errors.back().field, "material");
   EXPECT_EQ(inbox_->errors.back().message_type, "material_query_v1");
   EXPECT_TRUE(library_->store().ListJobs(false).empty());
+}
+
+TEST_F(LcmEndpointTest, ImageQueriesUseTheRecognitionHook) {
+  // Recognised: the candidate's material is looked up (unknown here, so a
+  // job opens for it, not for the id the robot proposed).
+  material_reply_v1 r = Query("proposed-id", "IMG:cork");
+  ASSERT_EQ(r.status, +material_reply_v1::STATUS_UNKNOWN) << r.reason;
+  EXPECT_EQ(r.material, "cork");
+  EXPECT_DOUBLE_EQ(r.recognition_score, 0.87);
+  EXPECT_EQ(library_->store().GetJob(r.job_id)->material, "cork");
+  // Not recognised: the proposed id names the new material.
+  r = Query("new-mat", "an unknown picture");
+  ASSERT_EQ(r.status, +material_reply_v1::STATUS_UNKNOWN) << r.reason;
+  EXPECT_EQ(library_->store().GetJob(r.job_id)->material, "new-mat");
+  // Not recognised and no id: rejected naming the field.
+  r = Query("", "an unknown picture");
+  EXPECT_EQ(r.status, +material_reply_v1::STATUS_ERROR);
+  EXPECT_EQ(r.reason.rfind("material: empty", 0), 0u) << r.reason;
+  // An image that cannot be decoded.
+  r = Query("x", "IMG-BAD");
+  EXPECT_EQ(r.status, +material_reply_v1::STATUS_ERROR);
+  EXPECT_EQ(r.reason.rfind("image: cannot decode", 0), 0u) << r.reason;
+  EXPECT_EQ(library_->store().ListJobs(false).size(), 2u);
 }
 
 TEST_F(LcmEndpointTest, BadChunksAreRejectedNamingTheFieldAndStoreNothing) {

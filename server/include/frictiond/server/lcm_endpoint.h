@@ -18,6 +18,7 @@
 #include <string>
 
 #include "frictiond/server/library.h"
+#include "frictiond/server/routes.h"
 #include "frictiond/server/stroke_reassembler.h"
 
 namespace frictiond {
@@ -37,6 +38,9 @@ struct LcmEndpointOptions {
   int poll_ms = 20;
   /// Strokes per job before it fails for too little span coverage.
   int max_strokes_per_job = 5;
+  /// Recognition hook for queries with an image (empty: such queries are
+  /// rejected). The daemon passes the one its HTTP routes use.
+  RecognizeImageFn recognize;
 };
 
 /// The endpoint. Not copyable or movable.

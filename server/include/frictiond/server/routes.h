@@ -3,6 +3,11 @@
 /// Route sets of the HTTP API (CONTRACT.md, "HTTP API"). Each feature
 /// registers its routes on the server against the shared library core.
 
+#include <functional>
+#include <string>
+#include <utility>
+#include <vector>
+
 #include "frictiond/server/http_server.h"
 #include "frictiond/server/library.h"
 
@@ -21,8 +26,24 @@ void RegisterLuGreFeature(
     HttpServer& http, FrictionLibrary& library);  // LuGre family + /breakaway
 void RegisterDiagnosisRoutes(HttpServer& http,
                              FrictionLibrary& library);  // /diagnose
-void RegisterRecognitionRoutes(
-    HttpServer& http, FrictionLibrary& library);  // /images, /recognize
+
+/// Answer of the recognition hook: ranked candidates (material, score),
+/// best first, or unknown (below the confidence threshold, or nothing
+/// registered).
+struct ImageRecognition {
+  bool unknown = true;
+  std::vector<std::pair<std::string, double>> candidates;
+};
+/// The recognition hook: image bytes (PNG or JPEG) -> ImageRecognition.
+/// @throws std::invalid_argument for an image that cannot be decoded.
+using RecognizeImageFn =
+    std::function<ImageRecognition(const std::string& image)>;
+
+/// /images, /recognize. Returns the recognition hook over the same
+/// registered references (for the LCM endpoint), or an empty function when
+/// built without OpenCV.
+RecognizeImageFn RegisterRecognitionRoutes(HttpServer& http,
+                                           FrictionLibrary& library);
 
 /// Material JSON as served.
 nlohmann::json MaterialToJson(const Material& m);
