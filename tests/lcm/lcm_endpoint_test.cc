@@ -30,6 +30,7 @@ class LcmEndpointTest : public ::testing::Test {
     o.url = url_;
     o.reassembly.resend_after_s = 0.2;
     o.reassembly.give_up_after_s = 1.0;
+    o.max_strokes_per_job = 2;
     // A stand-in recognition hook: "IMG:<id>" is recognised as <id>,
     // "IMG-BAD" cannot be decoded, anything else is unknown.
     o.recognize = [](const std::string& image) {
@@ -234,6 +235,45 @@ TEST_F(LcmEndpointTest, BadChunksAreRejectedNamingTheFieldAndStoreNothing) {
   // Nothing from the rejected chunks was stored and the job did not move.
   ExpectNothingStored("felt");
   EXPECT_EQ(library_->store().GetJob(job)->state, "requested");
+}
+
+TEST_F(LcmEndpointTest, TooLittleSpanGetsAFollowUpThenFails) {
+  const material_reply_v1 r = Query("felt");
+  ASSERT_EQ(r.status, +material_reply_v1::STATUS_UNKNOWN);
+  // A complete one-chunk stroke at one operating point: no span at all.
+  stroke_chunk_v1 c = MakeChunk(r.job_id, 0, 1, true);
+  inbox_->lcm().publish(kLcmStrokeChannel, &c);
+  ASSERT_TRUE(inbox_->WaitFor([&] {
+    for (const auto& q : inbox_->requests)
+      if (q.follow_up && q.stroke == 1) return true;
+    return false;
+  })) << "no follow-up request";
+  const identification_request_v1& follow = inbox_->requests.back();
+  EXPECT_EQ(follow.job_id, r.job_id);
+  // Covered: only fn 2 N, v 20 mm/s. Missing: the larger uncovered end of
+  // each axis (fn 2..4.5 N, v 20..80 mm/s).
+  EXPECT_DOUBLE_EQ(follow.fn_min_n, 2.0);
+  EXPECT_DOUBLE_EQ(follow.fn_max_n, StrokePlanOptions{}.fn_max_n);
+  EXPECT_DOUBLE_EQ(follow.v_min_mm_s, 20.0);
+  EXPECT_DOUBLE_EQ(follow.v_max_mm_s, StrokePlanOptions{}.v_max_mm_s);
+  EXPECT_EQ(library_->store().GetJob(r.job_id)->state, "stroking");
+  ExpectNothingStored("felt");  // no weak model
+  // The second (last allowed) stroke covers nothing either: failed.
+  c.stroke = 1;
+  inbox_->lcm().publish(kLcmStrokeChannel, &c);
+  ASSERT_TRUE(inbox_->WaitFor([&] {
+    for (const auto& p : inbox_->progress)
+      if (p.state == "failed") return true;
+    return false;
+  }));
+  const auto job = library_->store().GetJob(r.job_id);
+  EXPECT_EQ(job->state, "failed");
+  EXPECT_NE(job->detail.find("too little span coverage"), std::string::npos)
+      << job->detail;
+  ExpectNothingStored("felt");
+  // Chunks for the failed job are rejected.
+  c.stroke = 0;
+  EXPECT_EQ(ExpectRejected(c).field, "job_id");
 }
 
 TEST_F(LcmEndpointTest, MissingChunkIsAskedAgainThenDropped) {
