@@ -164,7 +164,12 @@ class LcmEndpointImpl {
       model_update_v1 u;
       u.utime = NowUtime();
       u.job_id = tl_ingesting_job;
-      u.reason = tl_ingesting_job ? "identification" : "update";
+      // Why the version was made ("upload", "diagnosis", ...), as stored.
+      const json doc = json::parse(m.json_text, nullptr, false);
+      u.reason =
+          doc.is_object() && doc.contains("reason") && doc["reason"].is_string()
+              ? doc["reason"].get<std::string>()
+              : std::string();
       u.model = ToLcm(m);
       p->Publish(kLcmModelUpdateChannel, u);
     });
