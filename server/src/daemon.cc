@@ -119,6 +119,7 @@ int Daemon::Start() {
   RegisterLuGreFeature(*http_, *library_);
   RegisterDiagnosisRoutes(*http_, *library_);
   RegisterRecognitionRoutes(*http_, *library_);
+  RegisterExportRoutes(*http_, *library_);
   return http_->Bind(config_.bind, config_.port);
 }
 

@@ -23,6 +23,10 @@ void RegisterDiagnosisRoutes(HttpServer& http,
                              FrictionLibrary& library);  // /diagnose
 void RegisterRecognitionRoutes(
     HttpServer& http, FrictionLibrary& library);  // /images, /recognize
+/// GET /v1/materials/{id}/export (simulator formats) and
+/// GET /v1/pairs/{fingertip}/{object}/friction (pair-level answer); see
+/// docs/export.md.
+void RegisterExportRoutes(HttpServer& http, FrictionLibrary& library);
 
 /// Material JSON as served.
 nlohmann::json MaterialToJson(const Material& m);
