@@ -51,7 +51,9 @@ double RiskParam(const HttpRequest& req) {
                        "risk",
                        "risk = " + Num(risk) + " (must be in [" +
                            Num(kMinSlipRisk) + ", " + Num(kMaxSlipRisk) +
-                           "]: the smallest stored quantile level is 0.001)");
+                           "]: the smallest stored quantile level is 0.001, "
+                           "and above 0.5 the range [Q(risk), Q(1 - risk)] "
+                           "would be inverted)");
   }
   return risk;
 }

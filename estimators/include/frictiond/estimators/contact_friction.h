@@ -22,9 +22,11 @@
 /// such a rule.
 ///
 /// @code
-///   MuDistribution d = CalcMuDistribution(model, {{"fn_n", 2.0}, {"v_mm_s",
-///   20.0}}); double mu_sim = d.Quantile(/*risk=*/0.05); MuDistribution pair
-///   = CombineMuDistributions(d, other, CombineRule::kHarmonicMean);
+///   const InputValues x = {{"fn_n", 2.0}, {"v_mm_s", 20.0}};
+///   MuDistribution d = CalcMuDistribution(model, x);
+///   SimFrictionValues s = CalcSimFrictionValues(d, /*risk=*/0.05);
+///   MuDistribution pair =
+///       CombineMuDistributions(d, other, CombineRule::kHarmonicMean);
 /// @endcode
 
 #include <string>
