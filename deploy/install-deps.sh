@@ -12,6 +12,7 @@ packages=(
   libopencv-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
+  libtinyxml2-dev      # XML parser that checks the MJCF/SDF/URDF exports
   python3-numpy python3-scipy
   gimp-data            # real texture images for the recognition tests
   iproute2 util-linux  # private network namespace for LCM multicast tests

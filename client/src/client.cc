@@ -64,7 +64,51 @@ json Check(const httplib::Result& res,
   return body;
 }
 
+std::string WithQuery(
+    std::string path,
+    const std::vector<std::pair<std::string, std::string>>& params) {
+  char sep = path.find('?') == std::string::npos ? '?' : '&';
+  for (const auto& [k, v] : params) {
+    path += sep + UrlEncode(k) + "=" + UrlEncode(v);
+    sep = '&';
+  }
+  return path;
+}
+
 }  // namespace
+
+std::string FrictionClient::GetText(const std::string& path,
+                                    std::string* content_type) {
+  const httplib::Result res = impl_->http.Get(path, impl_->headers);
+  const std::string what = "GET " + path;
+  if (!res || res->status >= 400) {
+    Check(res, what, options_.base_url);  // throws with the daemon's detail
+    throw ClientError(res->status,
+                      what + ": HTTP " + std::to_string(res->status));
+  }
+  if (content_type) *content_type = res->get_header_value("Content-Type");
+  return res->body;
+}
+
+std::string FrictionClient::ExportMaterial(
+    const std::string& material,
+    const std::string& format,
+    const std::vector<std::pair<std::string, std::string>>& params) {
+  auto all = params;
+  all.insert(all.begin(), {"fingertip", options_.fingertip});
+  all.insert(all.begin(), {"format", format});
+  return GetText(
+      WithQuery("/v1/materials/" + UrlEncode(material) + "/export", all));
+}
+
+json FrictionClient::FetchPairFriction(
+    const std::string& fingertip_material,
+    const std::string& object_material,
+    const std::vector<std::pair<std::string, std::string>>& params) {
+  return GetJson(WithQuery("/v1/pairs/" + UrlEncode(fingertip_material) + "/" +
+                               UrlEncode(object_material) + "/friction",
+                           params));
+}
 
 json FrictionClient::GetJson(const std::string& path) {
   return Check(

@@ -32,5 +32,7 @@ void RegisterDiagnoseCommand(CLI::App& app,
                              Globals& g);  // cli_diagnose.cc: diagnose
 void RegisterReportCommand(CLI::App& app, Globals& g);  // cli_report.cc: report
 void RegisterLuGreCommands(CLI::App& app, Globals& g);  // cli_lugre.cc
+void RegisterExportCommands(CLI::App& app,
+                            Globals& g);  // cli_export.cc: export, pair
 
 }  // namespace frictiond::cli

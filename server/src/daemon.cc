@@ -125,6 +125,7 @@ int Daemon::Start() {
   RegisterLuGreFeature(*http_, *library_);
   RegisterDiagnosisRoutes(*http_, *library_);
   RecognizeImageFn recognize = RegisterRecognitionRoutes(*http_, *library_);
+  RegisterExportRoutes(*http_, *library_);
   const int port = http_->Bind(config_.bind, config_.port);
   if (config_.lcm_url != "none") {
     LcmEndpointOptions lo_lcm;

@@ -92,6 +92,27 @@ class FrictionClient {
       const std::string& material,
       const std::string& csv,
       const std::vector<std::pair<std::string, std::string>>& params = {});
+  /// A material's friction in a simulator's format (GET
+  /// /v1/materials/{id}/export): format is mjcf, sdf, urdf, usd or isaac;
+  /// params are further query parameters (risk, fn_n, v_mm_s, name,
+  /// version). The fingertip is options().fingertip. Returns the text.
+  /// @throws ClientError: 400 names the bad parameter, 404 unknown material.
+  std::string ExportMaterial(
+      const std::string& material,
+      const std::string& format,
+      const std::vector<std::pair<std::string, std::string>>& params = {});
+  /// The friction distribution of a fingertip-object pair (GET
+  /// /v1/pairs/{fingertip}/{object}/friction): measured when that pair was
+  /// identified, otherwise combined by a rule ("measured": false). params:
+  /// fn_n, v_mm_s, rule, risk, reference.
+  nlohmann::json FetchPairFriction(
+      const std::string& fingertip_material,
+      const std::string& object_material,
+      const std::vector<std::pair<std::string, std::string>>& params = {});
+  /// Generic text GET (any Content-Type); *content_type receives the reply's
+  /// Content-Type when not null. @throws ClientError like GetJson.
+  std::string GetText(const std::string& path_and_query,
+                      std::string* content_type = nullptr);
   /// Generic JSON GET of a daemon path (e.g. "/v1/materials/x/predict?...").
   nlohmann::json GetJson(const std::string& path_and_query);
   /// Generic JSON request with a body.

@@ -44,6 +44,10 @@ using RecognizeImageFn =
 /// built without OpenCV.
 RecognizeImageFn RegisterRecognitionRoutes(HttpServer& http,
                                            FrictionLibrary& library);
+/// GET /v1/materials/{id}/export (simulator formats) and
+/// GET /v1/pairs/{fingertip}/{object}/friction (pair-level answer); see
+/// docs/export.md.
+void RegisterExportRoutes(HttpServer& http, FrictionLibrary& library);
 
 /// Material JSON as served.
 nlohmann::json MaterialToJson(const Material& m);
