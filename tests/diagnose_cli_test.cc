@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <string>
 
@@ -14,6 +15,7 @@
 #include <unistd.h>
 
 #include "frictiond/estimators/stroke_csv.h"
+#include "frictiond/testing/lugre_strokes.h"
 #include "frictiond/testing/planted_effects.h"
 
 namespace frictiond {
@@ -157,6 +159,48 @@ TEST_F(DiagnoseCliTest, BadFileExitsWithCode2AndTheLine) {
   EXPECT_NE(r.err.find(bad.string() + ": line 3: fn_n"), std::string::npos)
       << r.err;
   EXPECT_TRUE(r.out.empty()) << r.out;
+}
+
+TEST_F(DiagnoseCliTest, LuGreReplayBesideCoulombAndLinear) {
+  testing::LuGreStrokeSpec spec;  // truth 0.9, 0.6, 5, 0.004, 50, 0.1
+  const fs::path f = Write(
+      "lugre.csv", FormatStrokeCsv(testing::SimulateLuGreStrokes(spec, 4)));
+  CliRun r = Friction("diagnose " + f.string() +
+                      " --json --no-tests --lugre 0.9,0.6,5,0.004,50,0.1");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  ExpectContractShape(j);
+  std::map<std::string, nlohmann::json> by_model;
+  for (const auto& m : j["replay"]) by_model[m["model"]] = m;
+  ASSERT_EQ(by_model.count("lugre"), 1u) << j["replay"].dump(1);
+  ASSERT_EQ(by_model.count("coulomb"), 1u);
+  ASSERT_EQ(by_model.count("linear"), 1u);
+  const nlohmann::json& lugre = by_model["lugre"]["overall"];
+  const nlohmann::json& coulomb = by_model["coulomb"]["overall"];
+  EXPECT_LT(lugre["mu_mae"].get<double>(),
+            0.5 * coulomb["mu_mae"].get<double>())
+      << j["replay"].dump(1);
+  EXPECT_LT(lugre["breakaway_abs_error"].get<double>(),
+            coulomb["breakaway_abs_error"].get<double>());
+  EXPECT_TRUE(lugre["hits"].is_null());  // velocity-driven: no slip forecast
+  EXPECT_TRUE(coulomb["hits"].is_number());
+  EXPECT_TRUE(by_model["lugre"]["note"].is_string());
+  EXPECT_TRUE(j["replay_skipped"].empty()) << j["replay_skipped"];
+
+  // Without --lugre the JSON says why LuGre was not replayed.
+  r = Friction("diagnose " + f.string() + " --json --no-tests");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json without = nlohmann::json::parse(r.out);
+  for (const auto& m : without["replay"]) EXPECT_NE(m["model"], "lugre");
+  ASSERT_EQ(without["replay_skipped"].size(), 1u);
+
+  // Bad parameter sets exit 2 naming the problem.
+  r = Friction("diagnose " + f.string() + " --json --lugre 0.9,0.6");
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.err.find("--lugre"), std::string::npos) << r.err;
+  r = Friction("diagnose " + f.string() + " --json --lugre 0.9,0.6,5,0,-50,0");
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.err.find("sigma0"), std::string::npos) << r.err;
 }
 
 }  // namespace

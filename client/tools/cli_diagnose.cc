@@ -35,6 +35,7 @@ struct DiagnoseArgs {
   int max_findings = 5;
   bool no_strokes = false;
   bool no_tests = false;
+  std::vector<double> lugre;  ///< mu_s, mu_c, v0, sigma2, sigma0, sigma1
 };
 
 std::string Fmt(double x, int digits = 3) {
@@ -91,15 +92,19 @@ void PrintSummary(const DiagnosisResult& r,
               "bias");
   for (const ModelReplay& m : r.replay) {
     const ReplayErrors& e = m.overall;
-    std::printf("  %-9s %8.4f %6d %6d %6d %8.4f %10.4f %10.4f\n",
+    auto count = [&m](int c) {
+      return m.predicts_slip ? std::to_string(c) : std::string("-");
+    };
+    std::printf("  %-9s %8.4f %6s %6s %6s %8.4f %10.4f %10.4f\n",
                 m.model.c_str(),
                 e.mu_mae,
-                e.hits,
-                e.misses,
-                e.false_alarms,
+                count(e.hits).c_str(),
+                count(e.misses).c_str(),
+                count(e.false_alarms).c_str(),
                 e.brier,
                 e.breakaway_abs_error,
                 e.breakaway_bias);
+    if (!m.note.empty()) std::printf("    (%s)\n", m.note.c_str());
   }
   std::fflush(stdout);
   std::cout << "\nbaseline " << r.baseline.model << " [";
@@ -244,9 +249,12 @@ void WriteReport(const std::string& path,
        "|err|</th><th>bias</th></tr>";
   for (const ModelReplay& m : r.replay) {
     const ReplayErrors& e = m.overall;
+    auto count = [&m](int c) {
+      return m.predicts_slip ? std::to_string(c) : std::string("-");
+    };
     h << "<tr><td>" << m.model << "</td><td>" << Fmt(e.mu_mae, 4) << "</td><td>"
-      << e.hits << "</td><td>" << e.misses << "</td><td>" << e.false_alarms
-      << "</td><td>" << Fmt(e.brier, 4) << "</td><td>"
+      << count(e.hits) << "</td><td>" << count(e.misses) << "</td><td>"
+      << count(e.false_alarms) << "</td><td>" << Fmt(e.brier, 4) << "</td><td>"
       << Fmt(e.breakaway_abs_error, 4) << "</td><td>"
       << Fmt(e.breakaway_bias, 4) << "</td></tr>";
   }
@@ -311,6 +319,15 @@ void RunDiagnose(const DiagnoseArgs& a) {
   options.alpha = a.alpha;
   options.min_gain_pct = a.min_gain_pct;
   options.max_findings = a.max_findings;
+  if (!a.lugre.empty()) {
+    if (a.lugre.size() != 6) {
+      std::cerr << "friction: diagnose: --lugre has " << a.lugre.size()
+                << " values (must be 6: mu_s,mu_c,v0,sigma2,sigma0,sigma1)\n";
+      throw CLI::RuntimeError(2);
+    }
+    options.lugre = MakeLuGreTheta(
+        a.lugre[0], a.lugre[1], a.lugre[2], a.lugre[3], a.lugre[4], a.lugre[5]);
+  }
   std::string rule;
   const bool peak_given = a.slip_peak_mm_s > 0,
              floor_given = a.slip_floor_mm_s > 0;
@@ -366,7 +383,8 @@ void RegisterDiagnoseCommand(CLI::App& app, Globals& /*g*/) {
   auto args = std::make_shared<DiagnoseArgs>();
   CLI::App* cmd =
       app.add_subcommand("diagnose",
-                         "Replay strokes through Coulomb and the linear model, "
+                         "Replay strokes through Coulomb and the linear model "
+                         "(and LuGre with --lugre), "
                          "find significant causes of the remaining error "
                          "(columns, derived features, functional form), extend "
                          "the model and report held-out gains");
@@ -413,6 +431,12 @@ void RegisterDiagnoseCommand(CLI::App& app, Globals& /*g*/) {
   cmd->add_flag("--no-tests",
                 args->no_tests,
                 "JSON: leave out the list of all candidate tests");
+  cmd->add_option("--lugre",
+                  args->lugre,
+                  "also replay LuGre (paper 001) with these parameters: "
+                  "mu_s,mu_c,v0[mm/s],sigma2[s/mm],sigma0[1/mm],sigma1[s/mm] "
+                  "(e.g. from friction show ID --json)")
+      ->delimiter(',');
   cmd->callback([args]() { RunDiagnose(*args); });
 }
 

@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <limits>
 #include <map>
+#include <optional>
 #include <random>
 #include <set>
 #include <stdexcept>
@@ -709,6 +710,31 @@ std::string DescribeEffect(const Expansion& e,
 // ---------------------------------------------------------------------------
 // Replay
 
+/// Peak measured Ft/Fn around a stroke's first slip onset: from 0.25 s
+/// before to breakaway_window_s after (the window Replay uses); *onset gets
+/// the onset row (j + 1 when the stroke [i, j] has no slip sample).
+double MeasuredBreakaway(const StrokeData& data,
+                         std::size_t i,
+                         std::size_t j,
+                         double window_s,
+                         std::size_t* onset) {
+  *onset = j + 1;
+  for (std::size_t a = i; a <= j; ++a) {
+    if (data.slip[a] == 1) {
+      *onset = a;
+      break;
+    }
+  }
+  if (*onset > j) return kNaN;
+  double peak = 0.0;
+  for (std::size_t a = i; a <= j && data.t_s[a] <= data.t_s[*onset] + window_s;
+       ++a) {
+    if (data.t_s[a] >= data.t_s[*onset] - 0.25)
+      peak = std::max(peak, data.mu(a));
+  }
+  return peak;
+}
+
 ModelReplay Replay(const std::string& model_name,
                    const std::vector<Term>& terms,
                    const StrokeData& data,
@@ -808,21 +834,9 @@ ModelReplay Replay(const std::string& model_name,
     }
     // Break-away: peak ratio up to the window after the first onset.
     std::size_t onset = j + 1;
-    for (std::size_t a = i; a <= j; ++a) {
-      if (data.slip[a] == 1) {
-        onset = a;
-        break;
-      }
-    }
+    const double peak =
+        MeasuredBreakaway(data, i, j, options.breakaway_window_s, &onset);
     if (onset <= j) {
-      double peak = 0.0;
-      for (std::size_t a = i;
-           a <= j &&
-           data.t_s[a] <= data.t_s[onset] + options.breakaway_window_s;
-           ++a) {
-        if (data.t_s[a] >= data.t_s[onset] - 0.25)
-          peak = std::max(peak, data.mu(a));
-      }
       e.breakaway_measured = peak;
       onset_rows.push_back(onset);
     }
@@ -866,6 +880,151 @@ ModelReplay Replay(const std::string& model_name,
   }
   all_e.mu_mae = fit > 0 ? sae / fit : kNaN;
   all_e.brier = all_e.samples > 0 ? brier / all_e.samples : kNaN;
+  all_e.breakaway_measured = all_e.breakaway_predicted = kNaN;
+  all_e.breakaway_abs_error = ba_n > 0 ? ba_abs / ba_n : kNaN;
+  all_e.breakaway_bias = ba_n > 0 ? ba_bias / ba_n : kNaN;
+  out.strokes = std::move(per);
+  return out;
+}
+
+/// LuGre replay (paper 001): each stroke velocity-driven by its measured
+/// v(t) (signed by dir_sign when present) from z0 = min(mu_0, mu_s) / sigma0,
+/// compared as |mu_sim| with the measured Ft/Fn on the fitted (slipping)
+/// samples of `cv`, and on the peak ratio in the break-away window.
+ModelReplay ReplayLuGre(const LuGreTheta& theta,
+                        const StrokeData& data,
+                        const CvSetup& cv,
+                        const DiagnosisOptions& options) {
+  static const char* const kNames[6] = {
+      "mu_s", "mu_c", "v0_mm_s", "sigma2_s_mm", "sigma0_per_mm", "sigma1_s_mm"};
+  ModelReplay out;
+  out.model = "lugre";
+  for (int k = 0; k < 6; ++k)
+    out.terms.push_back(std::string(kNames[k]) + "=" + Num(theta[k], 4));
+  out.predicts_slip = false;
+  out.note =
+      "given parameters (not fitted to these strokes); velocity-driven "
+      "replay of each stroke from z0 = min(mu_0, mu_s)/sigma0";
+  const std::size_t n = data.size();
+  const std::size_t S = cv.id_of_dense.size();
+  const std::optional<std::size_t> dir = data.FindCovariate("dir_sign");
+  std::vector<double> mu_sim(n, kNaN);
+  std::vector<ReplayErrors> per(S);
+  for (std::size_t s = 0; s < S; ++s) {
+    per[s].stroke = cv.id_of_dense[s];
+    per[s].slip_samples = cv.fit_count[s];
+    per[s].brier = kNaN;
+    per[s].breakaway_measured = per[s].breakaway_predicted = kNaN;
+  }
+  int failed = 0;
+  std::string first_failure;
+  Eigen::VectorXd t, v;
+  for (std::size_t i = 0; i < n;) {
+    std::size_t j = i;
+    while (j + 1 < n && data.stroke[j + 1] == data.stroke[i]) ++j;
+    ReplayErrors& e = per[cv.dense_of_id.at(data.stroke[i])];
+    const Eigen::Index m = static_cast<Eigen::Index>(j - i + 1);
+    e.samples += static_cast<int>(m);
+    t.resize(m);
+    v.resize(m);
+    double first_sign = 0.0;
+    for (Eigen::Index k = 0; k < m; ++k) {
+      const std::size_t row = i + static_cast<std::size_t>(k);
+      // Strictly increasing times for the integrator (duplicates nudged).
+      t[k] = data.t_s[row] - data.t_s[i];
+      if (k > 0 && !(t[k] > t[k - 1])) t[k] = t[k - 1] + 1e-9;
+      const double sign = dir && data.covariates[*dir][row] < 0 ? -1.0 : 1.0;
+      v[k] = sign * data.v_mm_s[row];
+      if (first_sign == 0.0 && data.v_mm_s[row] > 0) first_sign = sign;
+    }
+    if (first_sign == 0.0) first_sign = 1.0;
+    const double z0_mm = first_sign *
+                         std::min(data.mu(i), theta[LuGreIndex::kMuStatic]) /
+                         theta[LuGreIndex::kStiffness];
+    VelocityDrivenResult r;
+    if (m >= 2) {
+      try {
+        r = SimulateVelocityDriven(theta, t, v, z0_mm);
+      } catch (const std::invalid_argument& e) {  // e.g. non-finite input
+        r.status = SimulationStatus::kNonFinite;
+        r.why = e.what();
+        r.mu = Eigen::VectorXd::Constant(m, kNaN);
+      }
+    } else {
+      r.status = SimulationStatus::kOk;
+      r.mu =
+          Eigen::VectorXd::Constant(1, theta[LuGreIndex::kStiffness] * z0_mm);
+    }
+    if (r.status != SimulationStatus::kOk) {
+      if (failed++ == 0)
+        first_failure =
+            "stroke " + std::to_string(data.stroke[i]) + ": " + r.why;
+    }
+    for (Eigen::Index k = 0; k < m; ++k)
+      mu_sim[i + static_cast<std::size_t>(k)] = std::fabs(r.mu[k]);
+    std::size_t onset = j + 1;
+    e.breakaway_measured =
+        MeasuredBreakaway(data, i, j, options.breakaway_window_s, &onset);
+    if (onset <= j) {
+      double peak = kNaN;
+      for (std::size_t a = i;
+           a <= j &&
+           data.t_s[a] <= data.t_s[onset] + options.breakaway_window_s;
+           ++a) {
+        if (data.t_s[a] >= data.t_s[onset] - 0.25 && std::isfinite(mu_sim[a]))
+          peak = std::isfinite(peak) ? std::max(peak, mu_sim[a]) : mu_sim[a];
+      }
+      e.breakaway_predicted = peak;
+    }
+    for (std::size_t a = i; a <= j;) {  // labelled slip episodes
+      if (data.slip[a] != 1) {
+        ++a;
+        continue;
+      }
+      while (a + 1 <= j && data.slip[a + 1] == 1) ++a;
+      ++e.slip_events;
+      ++a;
+    }
+    i = j + 1;
+  }
+  if (failed > 0) {
+    out.note += "; " + std::to_string(failed) +
+                " stroke(s) not fully simulated (first: " + first_failure + ")";
+  }
+  // mu errors on the fitted samples (the rows of the other replays).
+  std::vector<double> sae(S, 0.0);
+  std::vector<int> used(S, 0);
+  for (std::size_t r = 0; r < cv.rows.size(); ++r) {
+    const std::size_t row = cv.rows[r];
+    if (!std::isfinite(mu_sim[row])) continue;
+    const int s = cv.stroke_of_entry[r];
+    sae[s] += std::fabs(data.mu(row) - mu_sim[row]);
+    ++used[s];
+  }
+  ReplayErrors& all_e = out.overall;
+  all_e.brier = kNaN;
+  double sae_all = 0.0, ba_abs = 0.0, ba_bias = 0.0;
+  int used_all = 0, ba_n = 0;
+  for (std::size_t s = 0; s < S; ++s) {
+    ReplayErrors& e = per[s];
+    e.mu_mae = used[s] > 0 ? sae[s] / used[s] : kNaN;
+    sae_all += sae[s];
+    used_all += used[s];
+    all_e.samples += e.samples;
+    all_e.slip_samples += e.slip_samples;
+    all_e.slip_events += e.slip_events;
+    if (std::isfinite(e.breakaway_measured) &&
+        std::isfinite(e.breakaway_predicted)) {
+      e.breakaway_bias = e.breakaway_predicted - e.breakaway_measured;
+      e.breakaway_abs_error = std::fabs(e.breakaway_bias);
+      ba_abs += e.breakaway_abs_error;
+      ba_bias += e.breakaway_bias;
+      ++ba_n;
+    } else {
+      e.breakaway_abs_error = e.breakaway_bias = kNaN;
+    }
+  }
+  all_e.mu_mae = used_all > 0 ? sae_all / used_all : kNaN;
   all_e.breakaway_measured = all_e.breakaway_predicted = kNaN;
   all_e.breakaway_abs_error = ba_n > 0 ? ba_abs / ba_n : kNaN;
   all_e.breakaway_bias = ba_n > 0 ? ba_bias / ba_n : kNaN;
@@ -933,6 +1092,9 @@ bool DiagnosisOptions::IsValid(std::string* why) const {
     return fail("breakaway_window_s = " + Num(breakaway_window_s) +
                 " (must be >= 0)");
   }
+  std::string lugre_why;
+  if (lugre && !IsValidLuGreTheta(*lugre, &lugre_why))
+    return fail("lugre: " + lugre_why);
   return true;
 }
 
@@ -1215,6 +1377,8 @@ DiagnosisResult Diagnose(const StrokeData& input,
     if (!result.findings.empty())
       result.replay.push_back(
           Replay("extended", current, data, cv, cur_eval, options));
+    if (options.lugre)
+      result.replay.push_back(ReplayLuGre(*options.lugre, data, cv, options));
   }
   result.status = DiagnosisStatus::kOk;
   return result;

@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include "frictiond/estimators/regression.h"
+#include "frictiond/testing/lugre_strokes.h"
 #include "frictiond/testing/planted_effects.h"
 
 namespace frictiond {
@@ -244,6 +245,65 @@ TEST(DiagnosisTest, FilesKeepStrokesDistinctAndReplayFavoursTheLinearModel) {
             r.replay[1].overall.slip_events);
   EXPECT_GT(r.replay[1].overall.slip_events, 0);
   EXPECT_EQ(static_cast<int>(r.replay[1].strokes.size()), a.stroke.back() + 1);
+}
+
+// Issue 7 item 1: LuGre replay. Strokes simulated from a known LuGre truth
+// (seed 3, noise 0.005 on mu): replayed with the truth, LuGre's mu error is
+// at the noise level (mean |N(0, 0.005)| = 0.004) and well below Coulomb's,
+// and its break-away ratio error is smaller too; a wrong parameter set
+// (mu_s and mu_c 20 % low) replays worse than the truth.
+TEST(DiagnosisTest, LuGreReplayBeatsCoulombOnLuGreTruth) {
+  testing::LuGreStrokeSpec spec;
+  const std::uint64_t seed = 3;
+  DiagnosisOptions options;
+  options.lugre = spec.theta;
+  options.max_findings = 0;
+  const StrokeData data = PrepareDiagnosisData(
+      testing::SimulateLuGreStrokes(spec, seed), options.labelling);
+  const DiagnosisResult r = Diagnose(data, options);
+  ASSERT_EQ(r.status, DiagnosisStatus::kOk) << r.why;
+  ASSERT_EQ(r.replay.size(), 3u) << Describe(r);  // coulomb, linear, lugre
+  const ModelReplay& coulomb = r.replay[0];
+  const ModelReplay& lugre = r.replay.back();
+  ASSERT_EQ(coulomb.model, "coulomb");
+  ASSERT_EQ(lugre.model, "lugre");
+  EXPECT_FALSE(lugre.predicts_slip);
+  EXPECT_TRUE(coulomb.predicts_slip);
+  std::printf(
+      "[ lugre replay ] seed %llu: mu MAE lugre %.4f, coulomb %.4f, linear "
+      "%.4f; break-away |err| lugre %.4f, coulomb %.4f\n",
+      static_cast<unsigned long long>(seed),
+      lugre.overall.mu_mae,
+      coulomb.overall.mu_mae,
+      r.replay[1].overall.mu_mae,
+      lugre.overall.breakaway_abs_error,
+      coulomb.overall.breakaway_abs_error);
+  EXPECT_LT(lugre.overall.mu_mae, 0.5 * coulomb.overall.mu_mae);
+  EXPECT_LT(lugre.overall.mu_mae, 2.0 * 0.8 * spec.noise_mu)
+      << "expected about the mean |noise| 0.004";
+  EXPECT_LT(lugre.overall.breakaway_abs_error,
+            coulomb.overall.breakaway_abs_error);
+  EXPECT_LT(lugre.overall.breakaway_abs_error, 0.03);
+  EXPECT_EQ(lugre.overall.slip_samples, coulomb.overall.slip_samples);
+  EXPECT_EQ(lugre.overall.slip_events, coulomb.overall.slip_events);
+  ASSERT_EQ(lugre.strokes.size(), static_cast<std::size_t>(spec.strokes));
+  for (const ReplayErrors& e : lugre.strokes) {
+    EXPECT_TRUE(std::isfinite(e.mu_mae)) << "stroke " << e.stroke;
+    EXPECT_TRUE(std::isfinite(e.breakaway_predicted)) << "stroke " << e.stroke;
+  }
+
+  DiagnosisOptions wrong = options;
+  (*wrong.lugre)[0] *= 0.8;
+  (*wrong.lugre)[1] *= 0.8;
+  const DiagnosisResult rw = Diagnose(data, wrong);
+  ASSERT_EQ(rw.status, DiagnosisStatus::kOk) << rw.why;
+  EXPECT_GT(rw.replay.back().overall.mu_mae, 5 * lugre.overall.mu_mae);
+
+  DiagnosisOptions invalid = options;
+  (*invalid.lugre)[4] = -1.0;  // sigma0 must be > 0
+  std::string why;
+  EXPECT_FALSE(invalid.IsValid(&why));
+  EXPECT_NE(why.find("sigma0"), std::string::npos) << why;
 }
 
 // Issue 7: under 5 s for 25,000 samples with 10 candidate columns (Release).

@@ -24,16 +24,21 @@ nlohmann::json ModelJson(const DiagnosedModel& m) {
   return j;
 }
 
-nlohmann::json ErrorsJson(const ReplayErrors& e, bool overall) {
+/// Replay errors; slip-event fields are null for a model that does not
+/// predict slip (predicts_slip false).
+nlohmann::json ErrorsJson(const ReplayErrors& e,
+                          bool overall,
+                          bool predicts_slip) {
   nlohmann::json j;
   if (!overall) j["stroke"] = e.stroke;
   j["samples"] = e.samples;
   j["slip_samples"] = e.slip_samples;
   j["mu_mae"] = Number(e.mu_mae);
   j["slip_events"] = e.slip_events;
-  j["hits"] = e.hits;
-  j["misses"] = e.misses;
-  j["false_alarms"] = e.false_alarms;
+  j["hits"] = predicts_slip ? nlohmann::json(e.hits) : nlohmann::json();
+  j["misses"] = predicts_slip ? nlohmann::json(e.misses) : nlohmann::json();
+  j["false_alarms"] =
+      predicts_slip ? nlohmann::json(e.false_alarms) : nlohmann::json();
   j["brier"] = Number(e.brier);
   if (!overall) {
     j["breakaway_measured"] = Number(e.breakaway_measured);
@@ -98,22 +103,29 @@ nlohmann::json DiagnosisToJson(const DiagnosisResult& r,
       {"selection", "greedy forward, largest significant held-out gain first"}};
   if (json_options.replay) {
     nlohmann::json replay = nlohmann::json::array();
+    bool lugre_replayed = false;
     for (const ModelReplay& m : r.replay) {
-      nlohmann::json jm = {{"model", m.model},
-                           {"terms", m.terms},
-                           {"overall", ErrorsJson(m.overall, true)}};
+      lugre_replayed = lugre_replayed || m.model == "lugre";
+      nlohmann::json jm = {
+          {"model", m.model},
+          {"terms", m.terms},
+          {"overall", ErrorsJson(m.overall, true, m.predicts_slip)}};
+      if (!m.note.empty()) jm["note"] = m.note;
       if (json_options.replay_strokes) {
         nlohmann::json strokes = nlohmann::json::array();
         for (const ReplayErrors& e : m.strokes)
-          strokes.push_back(ErrorsJson(e, false));
+          strokes.push_back(ErrorsJson(e, false, m.predicts_slip));
         jm["strokes"] = strokes;
       }
       replay.push_back(jm);
     }
     j["replay"] = replay;
-    j["replay_skipped"] = {
-        "lugre: not replayed (the LuGre estimator was not available as a "
-        "stable, committed API)"};
+    j["replay_skipped"] = nlohmann::json::array();
+    if (!lugre_replayed && r.status == DiagnosisStatus::kOk) {
+      j["replay_skipped"].push_back(
+          "lugre: not replayed (no LuGre parameters given: friction diagnose "
+          "--lugre mu_s,mu_c,v0,sigma2,sigma0,sigma1)");
+    }
   }
   if (json_options.tests) {
     nlohmann::json tests = nlohmann::json::array();

@@ -4,8 +4,9 @@
 /// models, find what the simulation gets wrong, name the cause, extend the
 /// model and measure the gain on held-out strokes.
 ///
-/// Models replayed: Coulomb (mu = mu_c, constant) and the stochastic linear
-/// model of paper 000, eq. (1):
+/// Models replayed: Coulomb (mu = mu_c, constant), LuGre (paper 001, when a
+/// parameter set is given: velocity-driven replay of each stroke) and the
+/// stochastic linear model of paper 000, eq. (1):
 ///
 ///     mu(t) = b0 + b1 v(t) + b2 Fn(t) + eps                         (eq. 1)
 ///
@@ -57,9 +58,11 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "frictiond/estimators/lugre.h"
 #include "frictiond/estimators/preprocessing.h"
 #include "frictiond/estimators/stroke_data.h"
 
@@ -98,6 +101,16 @@ struct DiagnosisOptions {
   bool replay = true;
   /// Window after slip onset in which the break-away ratio is measured [s].
   double breakaway_window_s = 0.1;
+  /// LuGre parameters to replay (paper 001; e.g. the material's stored
+  /// LuGre family). When set (and replay is on), each stroke's measured
+  /// v(t) drives SimulateVelocityDriven (direction from a `dir_sign`
+  /// column when present, otherwise positive) from the bristle state that
+  /// explains the stroke's first Ft/Fn, z0 = min(mu_0, mu_s) / sigma0; the
+  /// replay reports |mu_sim| errors on the same slipping samples as the
+  /// other models and the peak |mu_sim| in the break-away window. The
+  /// parameters are given, not fitted to these strokes (not held-out).
+  /// Must satisfy IsValidLuGreTheta.
+  std::optional<LuGreTheta> lugre;
 
   /// True when usable; otherwise *why names the field, value and rule.
   bool IsValid(std::string* why) const;
@@ -179,8 +192,13 @@ struct ReplayErrors {
 
 /// Replay of one model over all strokes (held-out predictions).
 struct ModelReplay {
-  std::string model;               ///< "coulomb", "linear", "extended"
-  std::vector<std::string> terms;  ///< its terms
+  std::string model;               ///< "coulomb", "lugre", "linear", "extended"
+  std::vector<std::string> terms;  ///< its terms (LuGre: parameter names)
+  /// False when the model does not predict slip from forces (LuGre replayed
+  /// velocity-driven): hits, misses, false_alarms are 0 and brier is NaN.
+  bool predicts_slip = true;
+  /// How the replay was made when it differs from the held-out replays.
+  std::string note;
   ReplayErrors overall;
   std::vector<ReplayErrors> strokes;
 };

@@ -1,0 +1,152 @@
+// `frictiond --config FILE.json` (DaemonConfig::LoadFile, server/src/
+// daemon.cc): a valid file configures the daemon (settings no flag gives
+// are taken from it; flags override it), and a bad file (unknown key, wrong
+// type, broken JSON) stops the daemon at start-up with exit status 2 and a
+// message naming the field, before anything is created.
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <httplib.h>
+#include <nlohmann/json.hpp>
+#include <signal.h>
+#include <sys/wait.h>
+
+#include "frictiond/testing/daemon_process.h"
+
+namespace frictiond {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using testing::BinaryPath;
+using testing::DaemonOptions;
+using testing::DaemonProcess;
+using testing::ExitStatus;
+using testing::TempDir;
+
+std::string ReadAll(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+std::string WriteFile(const std::string& path, const std::string& text) {
+  std::ofstream(path, std::ios::binary) << text;
+  return path;
+}
+
+TEST(DaemonConfigTest, ValidConfigIsUsedAndFlagsOverrideIt) {
+  TempDir dir("daemon_config_test");
+  // data "none" (the default would load the bundled dataset), a 1 MiB body
+  // limit (default 16) and a stroke plan (default Fn 0.5..4.5 N) come only
+  // from the file; db is in the file too but --db overrides it.
+  const std::string config = WriteFile(dir.path() + "/frictiond.json", R"({
+    "db": ")" + dir.path() + R"(/from_config.db",
+    "bind": "127.0.0.1",
+    "data": "none",
+    "lcm": "none",
+    "max_body_mb": 1,
+    "threads": 2,
+    "plan": {"fn_min_n": 1.5, "fn_max_n": 7.5, "v_max_mm_s": 60}
+  })");
+  DaemonOptions options;
+  options.db = dir.path() + "/from_flag.db";
+  options.data = "";  // not passed: the file decides
+  options.lcm = "";
+  options.extra_args = {"--config", config};
+  DaemonProcess daemon(options);
+  daemon.Start();
+  auto client = daemon.MakeClient();
+
+  auto res = client->Get("/v1/materials");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 200) << res->body;
+  EXPECT_TRUE(json::parse(res->body)["materials"].empty())
+      << "data \"none\" from the config file was not applied: " << res->body;
+
+  res = client->Get("/v1/materials/cfg-unknown/model");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 404) << res->body;
+  const json stroke = json::parse(res->body)["identification"]["stroke"];
+  EXPECT_EQ(stroke["fn_n"], json({1.5, 7.5})) << stroke;
+  EXPECT_EQ(stroke["v_mm_s"][1], 60) << stroke;
+
+  // A 2 MiB body is over the configured 1 MiB limit.
+  res = client->Post(
+      "/v1/materials/cfg-big/strokes", std::string(2 << 20, '1'), "text/csv");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 413) << res->body.substr(0, 200);
+
+  const ExitStatus s = daemon.Stop(SIGTERM);
+  EXPECT_TRUE(s.exited && s.code == 0) << s.ToString() << daemon.ReadLog();
+  EXPECT_TRUE(fs::exists(dir.path() + "/from_flag.db"));
+  EXPECT_FALSE(fs::exists(dir.path() + "/from_config.db"))
+      << "--db should override the file's db";
+}
+
+struct Rejection {
+  const char* name;
+  const char* text;      // the config file
+  const char* expected;  // in the daemon's message
+};
+
+TEST(DaemonConfigTest, BadConfigIsRejectedNamingTheField) {
+  TempDir dir("daemon_config_bad");
+  const Rejection cases[] = {
+      {"unknown_key",
+       R"({"data": "none", "prot": 8080})",
+       "unknown key 'prot'"},
+      {"port_type",
+       R"({"data": "none", "port": "8080"})",
+       "port: expected an integer"},
+      {"port_fraction",
+       R"({"data": "none", "port": 80.5})",
+       "port: expected an integer"},
+      {"db_type", R"({"db": 7})", "db: expected a string"},
+      {"plan_type", R"({"plan": [1, 2]})", "plan: expected an object"},
+      {"plan_field_type",
+       R"({"plan": {"fn_max_n": "high"}})",
+       "plan.fn_max_n: expected a number"},
+      {"broken_json", R"({"port": 8080,)", "invalid JSON"},
+      {"not_object", R"([1, 2, 3])", "expected a JSON object"},
+  };
+  for (const Rejection& c : cases) {
+    SCOPED_TRACE(c.name);
+    const std::string config =
+        WriteFile(dir.path() + "/" + c.name + ".json", c.text);
+    const std::string db = dir.path() + "/" + c.name + ".db";
+    const std::string err = dir.path() + "/" + c.name + ".err";
+    // The port is free and the db new: only the config can make it fail.
+    // `timeout` ends a daemon that wrongly starts serving.
+    const std::string cmd = "timeout -s KILL 20 " + BinaryPath("frictiond") +
+                            " --config " + config + " --db " + db + " --port " +
+                            std::to_string(testing::FindFreePort()) +
+                            " >/dev/null 2>" + err;
+    const int status = std::system(cmd.c_str());
+    ASSERT_TRUE(WIFEXITED(status)) << "status " << status;
+    EXPECT_EQ(WEXITSTATUS(status), 2) << ReadAll(err);
+    const std::string message = ReadAll(err);
+    EXPECT_NE(message.find(c.expected), std::string::npos)
+        << "expected \"" << c.expected << "\" in: " << message;
+    EXPECT_NE(message.find(config), std::string::npos) << message;
+    EXPECT_FALSE(fs::exists(db)) << "a rejected config created the database";
+  }
+  // A missing file is rejected the same way.
+  const std::string cmd = "timeout -s KILL 20 " + BinaryPath("frictiond") +
+                          " --config " + dir.path() + "/missing.json --db " +
+                          dir.path() + "/missing.db >/dev/null 2>" +
+                          dir.path() + "/missing.err";
+  const int status = std::system(cmd.c_str());
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 2);
+  EXPECT_NE(ReadAll(dir.path() + "/missing.err").find("cannot read"),
+            std::string::npos);
+}
+
+}  // namespace
+}  // namespace frictiond
