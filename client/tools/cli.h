@@ -32,5 +32,6 @@ void RegisterDiagnoseCommand(CLI::App& app,
                              Globals& g);  // cli_diagnose.cc: diagnose
 void RegisterReportCommand(CLI::App& app, Globals& g);  // cli_report.cc: report
 void RegisterLuGreCommands(CLI::App& app, Globals& g);  // cli_lugre.cc
+void RegisterJointCommands(CLI::App& app, Globals& g);  // cli_joint.cc
 
 }  // namespace frictiond::cli

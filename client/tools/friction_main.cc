@@ -17,6 +17,7 @@ int main(int argc, char** argv) {
   frictiond::cli::RegisterDiagnoseCommand(app, g);
   frictiond::cli::RegisterReportCommand(app, g);
   frictiond::cli::RegisterLuGreCommands(app, g);
+  frictiond::cli::RegisterJointCommands(app, g);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
