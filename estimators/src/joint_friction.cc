@@ -150,12 +150,17 @@ double CalcMixedFriction(const MixedFrictionTheta& theta,
     if (J_f_s) *J_f_s = 0.0;
     return alpha * f_s + (1.0 - alpha) * f_l;
   }
-  const double log_ratio = std::log(sommerfeld_um / kSommerfeldRefUm);
-  const double scale = std::exp(theta[3] * log_ratio);  // (S/S_ref)^n
+  const bool want_j = J_f_theta || J_f_s;
+  // (S/S_ref)^n: one pow when no Jacobian is asked for (the hot path).
+  const double log_ratio =
+      want_j ? std::log(sommerfeld_um / kSommerfeldRefUm) : 0.0;
+  const double scale =
+      want_j ? std::exp(theta[3] * log_ratio)
+             : std::pow(sommerfeld_um / kSommerfeldRefUm, theta[3]);
   const double d = theta[2] * scale;
   double J_alpha_d = 0;
-  const double alpha = CalcSolidFraction(
-      surface, d, (J_f_theta || J_f_s) ? &J_alpha_d : nullptr);
+  const double alpha =
+      CalcSolidFraction(surface, d, want_j ? &J_alpha_d : nullptr);
   const double f = alpha * f_s + (1.0 - alpha) * f_l;  // eq. 1
   if (J_f_theta) {
     const double J_f_d = (f_s - f_l) * J_alpha_d;
