@@ -360,6 +360,15 @@ JointFitResult FitJointModel(JointModelKind kind,
   out.status =
       converged ? JointFitStatus::kConverged : JointFitStatus::kMaxIterations;
   if (!converged) out.why = "iteration limit reached";
+  std::string invalid;
+  if (kind == JointModelKind::kMixed &&
+      !IsValidMixedFrictionTheta(theta.head<4>(), &invalid)) {
+    // f_s < f_l: friction rises with S in these data, which eq. 1 with
+    // solid friction above fluid friction cannot express.
+    out.status = JointFitStatus::kFailed;
+    out.why = "fitted parameters leave the model's domain (" + invalid +
+              "): the data show no Stribeck drop of friction with S";
+  }
   return out;
 }
 
