@@ -187,6 +187,20 @@ TEST_F(JointCliTest, CommandLine) {
     EXPECT_EQ(r.exit_code, 1);
     EXPECT_NE(r.err.find("joints[2].friction"), std::string::npos) << r.err;
   }
+  json plain = json::parse(kCartesian);
+  plain["joints"][2].erase("friction");
+  plain["joints"][2]["sigma_tau"] = 4;
+  const fs::path robot3 = Write("robot3.json", plain.dump());
+  ASSERT_EQ(Friction("robot-put gantry3 " + robot3.string()).exit_code, 0);
+  const fs::path html = fs::path(dir_->path()) / "joint.html";
+  r = Friction(
+      "joint-report steel-oil --joint z2 --robot gantry3 --x0-mm 0 "
+      "--y0-mm 0 --size-mm 100 --n 5 -o " +
+      html.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string page = ReadAll(html);
+  EXPECT_NE(page.find("class=\"curve\""), std::string::npos);
+  EXPECT_NE(page.find("Repeatability field"), std::string::npos);
   r = Friction("joint-friction steel-oil --joint z2 --v-mm-s -3 --load-n 1");
   EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_NE(r.err.find("v_mm_s"), std::string::npos) << r.err;

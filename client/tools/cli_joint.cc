@@ -2,6 +2,7 @@
 // `joint-friction`, `joint-fit` (local, no daemon), `robot-put` and
 // `repeatability`.
 #include <cmath>
+#include <fstream>
 #include <iostream>
 #include <string>
 #include <utility>
@@ -9,6 +10,7 @@
 
 #include "frictiond/client/client.h"
 #include "frictiond/client/joint_client.h"
+#include "frictiond/client/joint_report.h"
 #include "frictiond/estimators/joint_identification.h"
 #include "frictiond/proto/joint_json.h"
 
@@ -133,6 +135,47 @@ void RegisterJointCommands(CLI::App& app, Globals& g) {
         json out = JointFamilyToJson(f);
         out.erase("span");
         std::cout << out.dump(2) << "\n";
+      });
+    });
+  }
+  {
+    auto* cmd = app.add_subcommand(
+        "joint-report",
+        "HTML report of a joint: f(S) curve, model table and (with --robot) "
+        "a repeatability field, as inline SVG");
+    static std::string id, joint = "default", robot, out = "joint.html";
+    static double z = 0, x0 = 0, y0 = -200, size = 400;
+    static int n = 20;
+    cmd->add_option("ID", id, "material (pair) id")->required();
+    cmd->add_option("--joint", joint, "joint id (default: default)");
+    cmd->add_option("--robot", robot, "robot id for the repeatability field");
+    cmd->add_option("--z-mm", z, "plane of the field [mm] (0)");
+    cmd->add_option("--x0-mm", x0, "field corner x [mm] (0)");
+    cmd->add_option("--y0-mm", y0, "field corner y [mm] (-200)");
+    cmd->add_option("--size-mm", size, "field edge [mm] (400, as the paper)");
+    cmd->add_option("--n", n, "grid points per edge (20)");
+    cmd->add_option("-o,--output", out, "HTML file to write (joint.html)");
+    cmd->callback([&g] {
+      Guard([&] {
+        FrictionClient client = MakeClient(g);
+        const ModelSet m = client.FetchModel(id, 0, joint);
+        const auto family = JointFamilyFromModel(m);
+        if (!family)
+          throw std::invalid_argument(
+              "model version " + std::to_string(m.version) + " of '" + id +
+              "' joint '" + joint + "' has no joint family");
+        json grid;
+        if (!robot.empty()) {
+          grid = client.GetJson(
+              "/v1/robots/" + UrlEncode(robot) +
+              "/repeatability-grid?z_mm=" + std::to_string(z) +
+              "&x0_mm=" + std::to_string(x0) + "&y0_mm=" + std::to_string(y0) +
+              "&size_mm=" + std::to_string(size) + "&n=" + std::to_string(n));
+        }
+        std::ofstream f(out, std::ios::binary);
+        f << RenderJointReportHtml(id, joint, *family, grid);
+        if (!f) throw std::invalid_argument(out + ": cannot write");
+        std::cout << out << "\n";
       });
     });
   }
