@@ -10,6 +10,7 @@
 
 #include <gtest/gtest.h>
 
+#include "frictiond/estimators/diagnosis.h"
 #include "frictiond/estimators/joint_identification.h"
 
 #include "jacobian_tester.h"
@@ -335,6 +336,64 @@ TEST(JointWear, WearCoefficientFallsWithSommerfeldAndFrictionDrifts) {
                   Truth(), surface, wear, contact, 0.01, 100.0, -1, 3);
             }),
             "distance_mm = -1 (must be > 0)");
+}
+
+// Joint data in stroke form (fn_n = joint load, ft_n = mu * load) whose
+// friction drifts with sliding distance by mixed-lubrication wear, with
+// random dwells between strokes so that elapsed time and distance differ:
+// the diagnosis must name distance_mm (issue 9 item 3). Seed 17.
+TEST(JointWear, DiagnosisNamesSlidingDistanceOnJointData) {
+  const AsperitySurface surface;
+  WearParams wear;
+  wear.k_solid = 5e-5;
+  const JointContact contact;
+  const double s_um = 0.004, load_n = 100, v_mm_s = 100;
+  constexpr int kStrokes = 40, kPerStroke = 60;
+  const double stroke_mm = v_mm_s * (kPerStroke - 1) * 0.02;
+  const auto drift = PredictWearDrift(
+      Truth(), surface, wear, contact, s_um, load_n, kStrokes * stroke_mm, 401);
+  ASSERT_GT(drift.front().friction - drift.back().friction, 0.02);
+  std::mt19937_64 rng(17);
+  std::normal_distribution<double> noise(0.0, 0.003);
+  std::uniform_real_distribution<double> dwell(0.5, 60.0);
+  StrokeData d;
+  double t = 0, dist = 0;
+  const double step = drift[1].distance_mm;
+  for (int k = 0; k < kStrokes; ++k) {
+    for (int i = 0; i < kPerStroke; ++i) {
+      const std::size_t j = std::min<std::size_t>(
+          static_cast<std::size_t>(dist / step), drift.size() - 2);
+      const double w = dist / step - static_cast<double>(j);
+      const double mu =
+          (1 - w) * drift[j].friction + w * drift[j + 1].friction + noise(rng);
+      d.t_s.push_back(t);
+      d.fn_n.push_back(load_n);
+      d.ft_n.push_back(mu * load_n);
+      d.v_mm_s.push_back(v_mm_s);
+      d.slip.push_back(1);
+      d.stroke.push_back(k);
+      t += 0.02;
+      if (i + 1 < kPerStroke) dist += v_mm_s * 0.02;
+    }
+    t += dwell(rng);  // unrecorded rest: a time gap, no distance
+  }
+  DiagnosisOptions options;
+  const DiagnosisResult r =
+      Diagnose(PrepareDiagnosisData(d, options.labelling), options);
+  ASSERT_FALSE(r.findings.empty()) << r.why;
+  EXPECT_EQ(r.findings.front().cause, "distance_mm")
+      << r.findings.front().cause << ": " << r.findings.front().effect;
+  std::cout << "diagnosis: " << r.findings.front().cause << ", gain "
+            << r.findings.front().cv_mae_gain_pct << " %, "
+            << r.findings.front().effect << "\n";
+  // Null case: the same joint without wear; distance must not be named.
+  StrokeData flat = d;
+  for (std::size_t i = 0; i < flat.size(); ++i)
+    flat.ft_n[i] = (drift.front().friction + noise(rng)) * load_n;
+  const DiagnosisResult r0 =
+      Diagnose(PrepareDiagnosisData(flat, options.labelling), options);
+  for (const Finding& f : r0.findings)
+    EXPECT_NE(f.cause, "distance_mm") << f.effect;
 }
 
 }  // namespace
