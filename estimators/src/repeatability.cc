@@ -152,6 +152,9 @@ double CalcChiSquareQuantile(int r, double c) {
 Ellipsoid CalcRepeatabilityEllipsoid(const SerialArm& arm,
                                      const Eigen::Ref<const Eigen::VectorXd>& q,
                                      double probability) {
+  if (!(probability > 0 && probability < 1))
+    throw std::invalid_argument("probability = " + Num(probability) +
+                                " (must be in (0, 1))");
   Ellipsoid e;
   e.P_x = CalcPositionCovariance(arm, q);
   e.probability = probability;
@@ -163,9 +166,6 @@ Ellipsoid CalcRepeatabilityEllipsoid(const SerialArm& arm,
     if (lam_max > 0 && lam[i] > 1e-12 * lam_max) ++e.rank;
   e.axes = es.eigenvectors();
   e.chi2 = e.rank > 0 ? CalcChiSquareQuantile(e.rank, probability) : 0.0;
-  if (!(probability > 0 && probability < 1))
-    throw std::invalid_argument("probability = " + Num(probability) +
-                                " (must be in (0, 1))");
   for (int i = 0; i < 3; ++i)
     e.semi_axes_mm[i] =
         lam[i] > 1e-12 * lam_max ? std::sqrt(e.chi2 * lam[i]) : 0.0;
