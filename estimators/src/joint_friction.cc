@@ -207,6 +207,74 @@ double SampleContactFriction(const MixedFrictionTheta& theta,
   return alpha * theta[0] + (1.0 - alpha) * theta[1];
 }
 
+MixedFrictionTable::MixedFrictionTable(const MixedFrictionTheta& theta,
+                                       const AsperitySurface& surface,
+                                       const Lubricant& lubricant,
+                                       const JointContact& contact) {
+  std::string why;
+  if (!IsValidMixedFrictionTheta(theta, &why)) throw std::invalid_argument(why);
+  ValidateSurface(surface);
+  ValidateLubricant(lubricant);
+  Require(contact.area_mm2 > 0 && std::isfinite(contact.area_mm2),
+          "area_mm2",
+          contact.area_mm2,
+          "must be > 0");
+  log_a_ = std::log(lubricant.vogel_a_pa_s);
+  b_ = lubricant.vogel_b_c;
+  c_ = lubricant.vogel_c_c;
+  // S [um] = eta * v_mm_s * 1e-3 / (load / (area * 1e-6)) * 1e6
+  //        = eta * v * area * 1e-3 / load.
+  log_const_ = std::log(contact.area_mm2 * 1e-3);
+  // Grid in u = ln S: where d runs from 1e-6 Alt.. (Alt + 12 SAlt), beyond
+  // which alpha is 1 - Q(Alt/SAlt)-limited or below 1e-30.
+  const double d_lo = 1e-9 * std::max(surface.salt_um, 1e-12);
+  const double d_hi = std::max(surface.alt_um, 0.0) + 12.0 * surface.salt_um;
+  auto u_of_d = [&](double d) {
+    return std::log(kSommerfeldRefUm) + std::log(d / theta[2]) / theta[3];
+  };
+  u_min_ = u_of_d(d_lo);
+  u_max_ = u_of_d(d_hi);
+  constexpr int kNodes = 4096;
+  du_ = (u_max_ - u_min_) / (kNodes - 1);
+  inv_du_ = 1.0 / du_;
+  f_.resize(kNodes);
+  slope_.resize(kNodes);
+  for (int i = 0; i < kNodes; ++i) {
+    const double s = std::exp(u_min_ + du_ * i);
+    double J_f_s = 0;
+    f_[static_cast<std::size_t>(i)] =
+        CalcMixedFriction(theta, surface, s, nullptr, &J_f_s);
+    slope_[static_cast<std::size_t>(i)] = J_f_s * s;  // df/du
+  }
+  f_low_ = CalcMixedFriction(theta, surface, std::exp(u_min_));
+  f_high_ = CalcMixedFriction(theta, surface, std::exp(u_max_));
+}
+
+double MixedFrictionTable::EvalLog(double u) const {
+  if (!(u > u_min_)) return f_low_;
+  if (!(u < u_max_)) return f_high_;
+  const double x = (u - u_min_) * inv_du_;
+  const std::size_t i = std::min(static_cast<std::size_t>(x), f_.size() - 2);
+  const double t = x - static_cast<double>(i);
+  const double t2 = t * t, t3 = t2 * t;
+  const double h00 = 2 * t3 - 3 * t2 + 1, h10 = t3 - 2 * t2 + t;
+  const double h01 = -2 * t3 + 3 * t2, h11 = t3 - t2;
+  return h00 * f_[i] + h10 * du_ * slope_[i] + h01 * f_[i + 1] +
+         h11 * du_ * slope_[i + 1];
+}
+
+double MixedFrictionTable::EvalSommerfeld(double sommerfeld_um) const {
+  return EvalLog(std::log(sommerfeld_um));
+}
+
+double MixedFrictionTable::Eval(double v_mm_s,
+                                double load_n,
+                                double temp_c) const {
+  const double t = temp_c + c_;
+  if (!(t > 0)) return std::numeric_limits<double>::quiet_NaN();
+  return EvalLog(log_a_ + b_ / t + std::log(v_mm_s / load_n) + log_const_);
+}
+
 double CalcWearCoefficient(const MixedFrictionTheta& theta,
                            const AsperitySurface& surface,
                            const WearParams& wear,

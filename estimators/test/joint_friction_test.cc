@@ -161,6 +161,30 @@ TEST(MixedFriction, SampledContactsMatchTheDispersionFormula) {
   EXPECT_LT(CalcMixedFrictionDispersion(theta, equal, s), sd_model);
 }
 
+TEST(MixedFriction, TableMatchesTheClosedForm) {
+  const JointConfig c;
+  const MixedFrictionTable table(Truth(), c.surface, c.lubricant, c.contact);
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  double worst = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const double v = 0.01 * std::pow(1e6, u(rng));
+    const double load = 1.0 + 999.0 * u(rng);
+    const double temp = -10.0 + 120.0 * u(rng);
+    const double eta = CalcViscosity(c.lubricant, temp);
+    const double s = CalcSommerfeldUm(eta, v, load, c.contact);
+    const double exact = CalcMixedFriction(Truth(), c.surface, s);
+    worst = std::max(worst, std::abs(table.Eval(v, load, temp) - exact));
+    worst = std::max(worst, std::abs(table.EvalSommerfeld(s) - exact));
+  }
+  EXPECT_LT(worst, 1e-9);
+  EXPECT_TRUE(std::isnan(table.Eval(1, 1, -200)));
+  EXPECT_NEAR(table.EvalSommerfeld(1e-30),
+              CalcMixedFriction(Truth(), c.surface, 1e-30),
+              1e-12);
+  EXPECT_NEAR(table.EvalSommerfeld(1e6), 0.004, 1e-15);
+}
+
 TEST(MixedFriction, ViscosityFollowsTheDocumentedVogelConstants) {
   const Lubricant oil;
   // ISO VG 68: 68 cSt at 40 C, 8.7 cSt at 100 C, density ~0.87.

@@ -162,6 +162,40 @@ double SampleContactFriction(const MixedFrictionTheta& theta,
                              double sommerfeld_um,
                              std::mt19937_64* rng);
 
+/// Fast evaluation of f at a joint state for a fixed model (the hot path of
+/// a robot's control loop and of the mixed_friction_eval benchmark). For a
+/// fixed theta f depends on the state only through u = ln S, and
+///
+///     ln S = ln A + B / (T + C) + ln V - ln p + const    (Vogel, no exp)
+///
+/// so f(u) is tabulated once on a uniform grid in u with its exact slope
+/// (cubic Hermite); outside the grid f is constant to double precision
+/// (alpha is 0 or its d = 0 limit there). Interpolation error is below
+/// 1e-9 (tested). Copyable; not thread-hostile (read-only after build).
+class MixedFrictionTable {
+ public:
+  /// Builds the table (about 50 us).
+  /// @throws std::invalid_argument for invalid theta, surface, lubricant or
+  /// contact (naming the field).
+  MixedFrictionTable(const MixedFrictionTheta& theta,
+                     const AsperitySurface& surface,
+                     const Lubricant& lubricant,
+                     const JointContact& contact);
+
+  /// f at S [um], S > 0.
+  double EvalSommerfeld(double sommerfeld_um) const;
+  /// f at a state: speed [mm/s] > 0, load [N] > 0, temperature [C] inside
+  /// the lubricant's Vogel range (NaN otherwise).
+  double Eval(double v_mm_s, double load_n, double temp_c) const;
+
+ private:
+  double EvalLog(double u) const;
+  double log_a_ = 0, b_ = 0, c_ = 0, log_const_ = 0;
+  double u_min_ = 0, u_max_ = 0, inv_du_ = 0, du_ = 0;
+  double f_low_ = 0, f_high_ = 0;
+  std::vector<double> f_, slope_;  // f and df/du at the nodes
+};
+
 // ---------------------------------------------------------------- wear
 
 /// Archard wear generalised to mixed lubrication (paper 002 Section 5.4):
