@@ -34,5 +34,6 @@ void RegisterReportCommand(CLI::App& app, Globals& g);  // cli_report.cc: report
 void RegisterLuGreCommands(CLI::App& app, Globals& g);  // cli_lugre.cc
 void RegisterExportCommands(CLI::App& app,
                             Globals& g);  // cli_export.cc: export, pair
+void RegisterJointCommands(CLI::App& app, Globals& g);  // cli_joint.cc
 
 }  // namespace frictiond::cli

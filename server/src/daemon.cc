@@ -124,6 +124,7 @@ int Daemon::Start() {
   RegisterPaper000Routes(*http_, *library_);
   RegisterLuGreFeature(*http_, *library_);
   RegisterDiagnosisRoutes(*http_, *library_);
+  RegisterJointRoutes(*http_, *library_);
   RecognizeImageFn recognize = RegisterRecognitionRoutes(*http_, *library_);
   RegisterExportRoutes(*http_, *library_);
   const int port = http_->Bind(config_.bind, config_.port);

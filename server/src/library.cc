@@ -437,6 +437,42 @@ std::shared_ptr<const CachedModel> FrictionLibrary::AddModelVersion(
   return m;
 }
 
+std::shared_ptr<const CachedModel> FrictionLibrary::AddFamilyVersion(
+    const std::string& material,
+    const std::string& fingertip,
+    const std::string& family,
+    const json& family_json,
+    const std::string& reason) {
+  std::lock_guard<std::mutex> lock(ingest_mu_);
+  if (!store_->GetMaterial(material)) {
+    Material m;
+    m.id = material;
+    m.name = material;
+    store_->PutMaterial(m);
+  }
+  ModelSet set;
+  set.material = material;
+  set.fingertip = fingertip;
+  if (auto previous = FindModel(material, fingertip)) {
+    set.stochastic = previous->set.stochastic;
+    set.other = previous->set.other;
+  }
+  set.other[family] = family_json;
+  ModelRecord record;
+  record.material = material;
+  record.fingertip = fingertip;
+  record.reason = reason;
+  json doc = ModelSetToJson(set);
+  doc.erase("version");
+  doc.erase("created_at");
+  record.json = doc.dump();
+  store_->AddModelVersion(record);
+  Invalidate(material, fingertip);
+  auto m = FindModel(material, fingertip);
+  Notify(m);
+  return m;
+}
+
 void FrictionLibrary::Invalidate(const std::string& material,
                                  const std::string& fingertip) {
   std::unique_lock lock(cache_mu_);

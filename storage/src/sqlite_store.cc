@@ -69,6 +69,10 @@ CREATE TABLE images(
   material TEXT NOT NULL REFERENCES materials(id) ON DELETE CASCADE,
   mime TEXT NOT NULL, features BLOB NOT NULL, created_at TEXT NOT NULL);
 )sql",
+    R"sql(
+CREATE TABLE robots(
+  id TEXT PRIMARY KEY, json TEXT NOT NULL, created_at TEXT NOT NULL, updated_at TEXT NOT NULL);
+)sql",
 };
 
 constexpr const char* kOpenStates =
@@ -236,6 +240,45 @@ class SqliteStore final : public Store {
     const bool deleted = sqlite3_changes(db_) > 0;
     tx.Commit();
     return deleted;
+  }
+
+  bool PutRobot(const RobotRecord& r) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    Transaction tx(this);
+    const std::string now = NowIso8601();
+    auto& exists = Stmt("SELECT 1 FROM robots WHERE id=?").Reset().Bind(r.id);
+    const bool existed = exists.Step();
+    exists.Reset();
+    if (existed) {
+      Stmt("UPDATE robots SET json=?, updated_at=? WHERE id=?")
+          .Reset()
+          .Bind(r.json)
+          .Bind(now)
+          .Bind(r.id)
+          .Run();
+    } else {
+      Stmt("INSERT INTO robots(id,json,created_at,updated_at) VALUES(?,?,?,?)")
+          .Reset()
+          .Bind(r.id)
+          .Bind(r.json)
+          .Bind(now)
+          .Bind(now)
+          .Run();
+    }
+    tx.Commit();
+    return !existed;
+  }
+
+  std::optional<RobotRecord> GetRobot(const std::string& id) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto& s =
+        Stmt("SELECT id,json,created_at,updated_at FROM robots WHERE id=?")
+            .Reset()
+            .Bind(id);
+    std::optional<RobotRecord> out;
+    if (s.Step()) out = RobotRecord{s.Text(0), s.Text(1), s.Text(2), s.Text(3)};
+    s.Reset();
+    return out;
   }
 
   bool PutFingertip(const Fingertip& f) override {

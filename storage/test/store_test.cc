@@ -71,6 +71,17 @@ TEST_P(StoreTest, SqlMetacharactersAreData) {
   EXPECT_EQ(store_->ListMaterials().size(), 1u);
 }
 
+TEST_P(StoreTest, RobotsAreCreatedThenReplaced) {
+  EXPECT_FALSE(store_->GetRobot("arm-1").has_value());
+  EXPECT_TRUE(
+      store_->PutRobot(RobotRecord{"arm-1", R"({"joints":[]})", "", ""}));
+  EXPECT_FALSE(store_->PutRobot(RobotRecord{"arm-1", R"({"v":2})", "", ""}));
+  const auto r = store_->GetRobot("arm-1");
+  ASSERT_TRUE(r.has_value());
+  EXPECT_EQ(r->json, R"({"v":2})");
+  EXPECT_FALSE(r->created_at.empty());
+}
+
 TEST_P(StoreTest, DefaultFingertipExists) {
   ASSERT_TRUE(store_->GetFingertip("default"));
   EXPECT_TRUE(store_->PutFingertip(

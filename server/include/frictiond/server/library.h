@@ -129,6 +129,16 @@ class FrictionLibrary {
       const std::string& reason,
       const nlohmann::json& extra_families = nlohmann::json::object());
 
+  /// Stores a new model version of a pair that replaces one family (e.g.
+  /// "joint") and carries every other family of the newest version over
+  /// unchanged. Creates the material (name = id) when it does not exist.
+  std::shared_ptr<const CachedModel> AddFamilyVersion(
+      const std::string& material,
+      const std::string& fingertip,
+      const std::string& family,
+      const nlohmann::json& family_json,
+      const std::string& reason);
+
   /// All stored strokes of a pair, parsed and appended (stroke ids distinct).
   /// Each upload is labelled (given labels kept, else `labelling`, else the
   /// newest model's labelling) and gets the derived features of CONTRACT.md.

@@ -26,6 +26,9 @@ void RegisterLuGreFeature(
     HttpServer& http, FrictionLibrary& library);  // LuGre family + /breakaway
 void RegisterDiagnosisRoutes(HttpServer& http,
                              FrictionLibrary& library);  // /diagnose
+/// Joint friction (paper 002): /joint-data, /joint-friction, /joint-wear,
+/// /v1/robots/{id}, /repeatability, /repeatability-grid (docs/joint.md).
+void RegisterJointRoutes(HttpServer& http, FrictionLibrary& library);
 
 /// Answer of the recognition hook: ranked candidates (material, score),
 /// best first, or unknown (below the confidence threshold, or nothing

@@ -84,6 +84,15 @@ struct ImageRecord {
   std::string created_at;
 };
 
+/// A robot description (kinematics, joint stiffness and joint friction
+/// references) as a JSON document; the server validates it before storing.
+struct RobotRecord {
+  std::string id;  ///< [A-Za-z0-9._-]{1,64}
+  std::string json;
+  std::string created_at;  ///< set by the store
+  std::string updated_at;  ///< set by the store
+};
+
 /// Result of Store::CommitUpload.
 struct UploadCommit {
   std::int64_t stroke_id = 0;
@@ -155,6 +164,11 @@ class Store {
   // --- images ---------------------------------------------------------------
   virtual std::int64_t AddImage(const ImageRecord& image) = 0;
   virtual std::vector<ImageRecord> ListImages() = 0;
+
+  // --- robots ----------------------------------------------------------------
+  /// Creates or replaces a robot description. @return true when created.
+  virtual bool PutRobot(const RobotRecord& robot) = 0;
+  virtual std::optional<RobotRecord> GetRobot(const std::string& id) = 0;
 
   // --- housekeeping ----------------------------------------------------------
   /// Schema version (number of applied migrations).

@@ -1,0 +1,462 @@
+#include "frictiond/estimators/joint_identification.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <numeric>
+#include <random>
+#include <stdexcept>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+
+#include "frictiond/estimators/lugre.h"
+
+namespace frictiond {
+
+namespace {
+
+std::string Num(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.6g", x);
+  return buf;
+}
+
+double Quantile(std::vector<double> x, double q) {
+  if (x.empty()) return std::numeric_limits<double>::quiet_NaN();
+  const std::size_t k = static_cast<std::size_t>(q * (x.size() - 1));
+  std::nth_element(
+      x.begin(), x.begin() + static_cast<std::ptrdiff_t>(k), x.end());
+  return x[k];
+}
+
+// Box bounds of each model's parameters.
+void Bounds(JointModelKind kind, Eigen::VectorXd* lo, Eigen::VectorXd* hi) {
+  switch (kind) {
+    case JointModelKind::kMixed:
+      *lo = Eigen::Vector4d(0.0, 0.0, 1e-4, 0.05);
+      *hi = Eigen::Vector4d(2.0, 2.0, 1e3, 3.0);
+      return;
+    case JointModelKind::kStribeckViscous:
+      lo->resize(5);
+      hi->resize(5);
+      *lo << 0.0, 0.0, 1e-3, 0.2, -1.0;
+      *hi << 2.0, 2.0, 1e5, 5.0, 1.0;
+      return;
+    case JointModelKind::kLuGreSteadyState:
+      *lo = Eigen::Vector4d(1e-4, 1e-4, 1e-3, -1.0);
+      *hi = Eigen::Vector4d(2.0, 2.0, 1e5, 1.0);
+      return;
+  }
+}
+
+std::vector<std::size_t> AllRows(std::size_t n) {
+  std::vector<std::size_t> r(n);
+  std::iota(r.begin(), r.end(), std::size_t{0});
+  return r;
+}
+
+Eigen::VectorXd StartGuess(JointModelKind kind,
+                           const JointData& d,
+                           const JointConfig& c,
+                           const std::vector<std::size_t>& rows) {
+  std::vector<double> mu, v, s;
+  for (std::size_t i : rows) {
+    mu.push_back(d.mu[i]);
+    v.push_back(d.v_mm_s[i]);
+    s.push_back(
+        CalcSommerfeldUm(d.eta_pa_s[i], d.v_mm_s[i], d.load_n[i], c.contact));
+  }
+  const double hi = std::max(Quantile(mu, 0.95), 1e-3);
+  const double lo = std::clamp(Quantile(mu, 0.05), 0.0, hi);
+  const double v_med = std::max(Quantile(v, 0.5), 1e-2);
+  switch (kind) {
+    case JointModelKind::kMixed: {
+      // Film thickness equal to the mean summit altitude at the median S.
+      const double n = 0.6;
+      const double s_med = std::max(Quantile(s, 0.5), 1e-12);
+      const double d_ref =
+          std::clamp(std::max(c.surface.alt_um, 0.1 * c.surface.salt_um) /
+                         std::pow(s_med / kSommerfeldRefUm, n),
+                     2e-4,
+                     5e2);
+      return Eigen::Vector4d(hi, lo, d_ref, n);
+    }
+    case JointModelKind::kStribeckViscous: {
+      Eigen::VectorXd t(5);
+      t << lo, hi, v_med, 2.0, 0.0;
+      return t;
+    }
+    case JointModelKind::kLuGreSteadyState:
+      return Eigen::Vector4d(hi, lo, v_med, 0.0);
+  }
+  return {};
+}
+
+}  // namespace
+
+void ValidateJointData(const JointData& d) {
+  const std::size_t n = d.mu.size();
+  auto same = [&](std::size_t m, const char* name) {
+    if (m != n)
+      throw std::invalid_argument(std::string(name) + " has " +
+                                  std::to_string(m) + " samples, mu has " +
+                                  std::to_string(n));
+  };
+  same(d.v_mm_s.size(), "v_mm_s");
+  same(d.load_n.size(), "load_n");
+  same(d.eta_pa_s.size(), "eta_pa_s");
+  if (!d.temp_c.empty()) same(d.temp_c.size(), "temp_c");
+  for (std::size_t i = 0; i < n; ++i) {
+    auto bad = [&](const char* field, double x, const char* rule) {
+      throw std::invalid_argument("sample " + std::to_string(i) + ": " + field +
+                                  " = " + Num(x) + " (" + rule + ")");
+    };
+    if (!(d.v_mm_s[i] > 0 && std::isfinite(d.v_mm_s[i])))
+      bad("v_mm_s", d.v_mm_s[i], "must be > 0 and finite");
+    if (!(d.load_n[i] > 0 && std::isfinite(d.load_n[i])))
+      bad("load_n", d.load_n[i], "must be > 0 and finite");
+    if (!(d.eta_pa_s[i] > 0 && std::isfinite(d.eta_pa_s[i])))
+      bad("eta_pa_s", d.eta_pa_s[i], "must be > 0 and finite");
+    if (!std::isfinite(d.mu[i])) bad("mu", d.mu[i], "must be finite");
+  }
+}
+
+std::string ToString(JointModelKind kind) {
+  switch (kind) {
+    case JointModelKind::kMixed:
+      return "mixed";
+    case JointModelKind::kStribeckViscous:
+      return "stribeck_viscous";
+    case JointModelKind::kLuGreSteadyState:
+      return "lugre_steady_state";
+  }
+  return "?";
+}
+
+int ParameterCount(JointModelKind kind) {
+  return kind == JointModelKind::kStribeckViscous ? 5 : 4;
+}
+
+std::vector<std::string> ParameterNames(JointModelKind kind) {
+  switch (kind) {
+    case JointModelKind::kMixed:
+      return {"f_s", "f_l", "d_ref_um", "n"};
+    case JointModelKind::kStribeckViscous:
+      return {"f_c", "f_st", "v_s_mm_s", "delta", "k_v_s_mm"};
+    case JointModelKind::kLuGreSteadyState:
+      return {"mu_s", "mu_c", "v0_mm_s", "sigma2_s_mm"};
+  }
+  return {};
+}
+
+std::string ToString(JointFitStatus status) {
+  switch (status) {
+    case JointFitStatus::kConverged:
+      return "converged";
+    case JointFitStatus::kMaxIterations:
+      return "max_iterations";
+    case JointFitStatus::kNotObservable:
+      return "not_observable";
+    case JointFitStatus::kFailed:
+      return "failed";
+  }
+  return "?";
+}
+
+double PredictJointFriction(JointModelKind kind,
+                            const Eigen::Ref<const Eigen::VectorXd>& theta,
+                            const JointConfig& config,
+                            double v_mm_s,
+                            double load_n,
+                            double eta_pa_s,
+                            Eigen::RowVectorXd* J_mu_theta) {
+  switch (kind) {
+    case JointModelKind::kMixed: {
+      const MixedFrictionTheta t = theta.head<4>();
+      const double s =
+          CalcSommerfeldUm(eta_pa_s, v_mm_s, load_n, config.contact);
+      MixedFrictionThetaRow J;
+      const double f =
+          CalcMixedFriction(t, config.surface, s, J_mu_theta ? &J : nullptr);
+      if (J_mu_theta) *J_mu_theta = J;
+      return f;
+    }
+    case JointModelKind::kStribeckViscous: {
+      const double f_c = theta[0], f_st = theta[1], v_s = theta[2],
+                   delta = theta[3], k_v = theta[4];
+      const double x = v_mm_s / v_s;
+      const double lx = std::log(x);
+      const double p = std::exp(delta * lx);  // (v/v_s)^delta
+      const double e = std::exp(-p);
+      if (J_mu_theta) {
+        J_mu_theta->resize(5);
+        (*J_mu_theta)[0] = 1.0 - e;
+        (*J_mu_theta)[1] = e;
+        // d/dv_s of -p = delta p / v_s
+        (*J_mu_theta)[2] = (f_st - f_c) * e * delta * p / v_s;
+        (*J_mu_theta)[3] = -(f_st - f_c) * e * p * lx;
+        (*J_mu_theta)[4] = v_mm_s;
+      }
+      return f_c + (f_st - f_c) * e + k_v * v_mm_s;
+    }
+    case JointModelKind::kLuGreSteadyState: {
+      LuGreTheta t = LuGreTheta::Zero();
+      t.head<4>() = theta.head<4>();
+      t[LuGreIndex::kStiffness] = 1.0;  // does not enter the steady state
+      LuGreThetaRow J;
+      const double f =
+          CalcSteadyStateFrictionRatio(t, v_mm_s, J_mu_theta ? &J : nullptr);
+      if (J_mu_theta) *J_mu_theta = J.head<4>();
+      return f;
+    }
+  }
+  return std::numeric_limits<double>::quiet_NaN();
+}
+
+JointFitResult FitJointModel(JointModelKind kind,
+                             const JointData& data,
+                             const JointConfig& config,
+                             const JointFitOptions& options,
+                             const std::vector<std::size_t>& rows_in) {
+  ValidateJointData(data);
+  ValidateSurface(config.surface);
+  ValidateLubricant(config.lubricant);
+  if (!(config.contact.area_mm2 > 0 && std::isfinite(config.contact.area_mm2)))
+    throw std::invalid_argument("area_mm2 = " + Num(config.contact.area_mm2) +
+                                " (must be > 0)");
+  if (!(options.max_iterations > 0))
+    throw std::invalid_argument(
+        "max_iterations = " + std::to_string(options.max_iterations) +
+        " (must be > 0)");
+  const int p = ParameterCount(kind);
+  if (options.start.size() != 0 && options.start.size() != p)
+    throw std::invalid_argument("start has " +
+                                std::to_string(options.start.size()) +
+                                " entries (must be " + std::to_string(p) + ")");
+  for (std::size_t r : rows_in)
+    if (r >= data.size())
+      throw std::invalid_argument("row " + std::to_string(r) +
+                                  " is out of range");
+  const std::vector<std::size_t> rows =
+      rows_in.empty() ? AllRows(data.size()) : rows_in;
+
+  JointFitResult out;
+  out.kind = kind;
+  const Eigen::Index m = static_cast<Eigen::Index>(rows.size());
+  if (m <= p) {
+    out.status = JointFitStatus::kNotObservable;
+    out.why =
+        std::to_string(m) + " samples for " + std::to_string(p) + " parameters";
+    out.theta =
+        Eigen::VectorXd::Constant(p, std::numeric_limits<double>::quiet_NaN());
+    out.P_theta = Eigen::MatrixXd::Zero(p, p);
+    return out;
+  }
+  Eigen::VectorXd lo, hi;
+  Bounds(kind, &lo, &hi);
+  Eigen::VectorXd theta = options.start.size()
+                              ? options.start
+                              : StartGuess(kind, data, config, rows);
+  theta = theta.cwiseMax(lo).cwiseMin(hi);
+
+  Eigen::VectorXd r(m);
+  Eigen::MatrixXd J(m, p);
+  Eigen::RowVectorXd row(p);
+  auto evaluate = [&](const Eigen::VectorXd& th, bool with_j) {
+    double cost = 0;
+    for (Eigen::Index i = 0; i < m; ++i) {
+      const std::size_t k = rows[static_cast<std::size_t>(i)];
+      const double f = PredictJointFriction(kind,
+                                            th,
+                                            config,
+                                            data.v_mm_s[k],
+                                            data.load_n[k],
+                                            data.eta_pa_s[k],
+                                            with_j ? &row : nullptr);
+      r[i] = f - data.mu[k];
+      if (with_j) J.row(i) = row;
+      cost += r[i] * r[i];
+    }
+    return std::isfinite(cost) ? cost : std::numeric_limits<double>::infinity();
+  };
+
+  double cost = evaluate(theta, true);
+  if (!std::isfinite(cost)) {
+    out.status = JointFitStatus::kFailed;
+    out.why = "model is not finite at the start";
+    out.theta = theta;
+    out.P_theta = Eigen::MatrixXd::Zero(p, p);
+    return out;
+  }
+  double lambda = 1e-3;
+  bool converged = false;
+  int it = 0;
+  Eigen::MatrixXd A(p, p);
+  Eigen::VectorXd g(p), step(p), trial(p);
+  Eigen::VectorXd r_best = r;
+  Eigen::MatrixXd J_best = J;
+  for (; it < options.max_iterations && !converged; ++it) {
+    A.noalias() = J.transpose() * J;
+    g.noalias() = J.transpose() * r;
+    const Eigen::VectorXd diag = A.diagonal().cwiseMax(1e-12);
+    bool accepted = false;
+    for (int tries = 0; tries < 30 && !accepted; ++tries) {
+      Eigen::MatrixXd M = A;
+      M.diagonal() += lambda * diag;
+      step = M.ldlt().solve(-g);
+      trial = (theta + step).cwiseMax(lo).cwiseMin(hi);
+      const double c = evaluate(trial, true);
+      if (c < cost) {
+        const double gain = (cost - c) / std::max(cost, 1e-300);
+        const double move = (trial - theta).norm() / (theta.norm() + 1e-12);
+        theta = trial;
+        cost = c;
+        r_best = r;
+        J_best = J;
+        lambda = std::max(lambda / 3.0, 1e-12);
+        accepted = true;
+        if (gain < options.cost_tolerance || move < 1e-12) converged = true;
+      } else {
+        r = r_best;
+        J = J_best;
+        lambda *= 4.0;
+      }
+    }
+    if (!accepted) converged = true;  // no descent: at a (bounded) minimum
+  }
+  r = r_best;
+  J = J_best;
+  out.theta = theta;
+  out.iterations = it;
+  out.residual_rms = std::sqrt(cost / static_cast<double>(m));
+
+  // Robust (sandwich) covariance on the Jacobi-scaled normal matrix.
+  A.noalias() = J.transpose() * J;
+  const Eigen::VectorXd scale =
+      A.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+  const Eigen::MatrixXd As = scale.asDiagonal() * A * scale.asDiagonal();
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(As);
+  const double emax = es.eigenvalues().maxCoeff();
+  const double emin = es.eigenvalues().minCoeff();
+  out.rcond = emax > 0 ? std::max(0.0, emin) / emax : 0.0;
+  if (!(out.rcond >= options.min_rcond)) {
+    out.status = JointFitStatus::kNotObservable;
+    out.why = "J^T J is rank deficient (rcond " + Num(out.rcond) +
+              "): the data do not excite every parameter";
+    out.P_theta = Eigen::MatrixXd::Zero(p, p);
+    return out;
+  }
+  const Eigen::MatrixXd As_inv = es.eigenvectors() *
+                                 es.eigenvalues().cwiseInverse().asDiagonal() *
+                                 es.eigenvectors().transpose();
+  const Eigen::MatrixXd A_inv =
+      scale.asDiagonal() * As_inv * scale.asDiagonal();
+  const Eigen::MatrixXd Jr = r.asDiagonal() * J;
+  const Eigen::MatrixXd meat = Jr.transpose() * Jr;
+  out.P_theta = A_inv * meat * A_inv *
+                (static_cast<double>(m) / static_cast<double>(m - p));
+  out.status =
+      converged ? JointFitStatus::kConverged : JointFitStatus::kMaxIterations;
+  if (!converged) out.why = "iteration limit reached";
+  std::string invalid;
+  if (kind == JointModelKind::kMixed &&
+      !IsValidMixedFrictionTheta(theta.head<4>(), &invalid)) {
+    // f_s < f_l: friction rises with S in these data, which eq. 1 with
+    // solid friction above fluid friction cannot express.
+    out.status = JointFitStatus::kFailed;
+    out.why = "fitted parameters leave the model's domain (" + invalid +
+              "): the data show no Stribeck drop of friction with S";
+  }
+  return out;
+}
+
+std::vector<JointModelScore> CompareJointModels(const JointData& data,
+                                                const JointConfig& config,
+                                                int k,
+                                                const std::vector<int>& fold) {
+  ValidateJointData(data);
+  if (k < 2)
+    throw std::invalid_argument("k = " + std::to_string(k) + " (must be >= 2)");
+  if (!fold.empty() && fold.size() != data.size())
+    throw std::invalid_argument("fold has " + std::to_string(fold.size()) +
+                                " entries, data has " +
+                                std::to_string(data.size()));
+  std::vector<int> f(data.size());
+  for (std::size_t i = 0; i < f.size(); ++i) {
+    f[i] = fold.empty() ? static_cast<int>(i % static_cast<std::size_t>(k))
+                        : fold[i];
+    if (f[i] < 0 || f[i] >= k)
+      throw std::invalid_argument(
+          "fold[" + std::to_string(i) + "] = " + std::to_string(f[i]) +
+          " (must be in [0, " + std::to_string(k - 1) + "])");
+  }
+  std::vector<JointModelScore> out;
+  for (JointModelKind kind : {JointModelKind::kMixed,
+                              JointModelKind::kStribeckViscous,
+                              JointModelKind::kLuGreSteadyState}) {
+    JointModelScore s;
+    s.kind = kind;
+    double se = 0, ae = 0;
+    std::size_t count = 0;
+    for (int fk = 0; fk < k; ++fk) {
+      std::vector<std::size_t> train, test;
+      for (std::size_t i = 0; i < f.size(); ++i)
+        (f[i] == fk ? test : train).push_back(i);
+      if (test.empty() || train.empty()) continue;
+      const JointFitResult r = FitJointModel(kind, data, config, {}, train);
+      if (r.status == JointFitStatus::kConverged ||
+          r.status == JointFitStatus::kMaxIterations) {
+        ++s.folds_fitted;
+      }
+      if (!r.theta.allFinite()) continue;
+      for (std::size_t i : test) {
+        const double e = PredictJointFriction(kind,
+                                              r.theta,
+                                              config,
+                                              data.v_mm_s[i],
+                                              data.load_n[i],
+                                              data.eta_pa_s[i]) -
+                         data.mu[i];
+        se += e * e;
+        ae += std::abs(e);
+        ++count;
+      }
+    }
+    s.heldout_rmse = count ? std::sqrt(se / count)
+                           : std::numeric_limits<double>::quiet_NaN();
+    s.heldout_mae =
+        count ? ae / count : std::numeric_limits<double>::quiet_NaN();
+    out.push_back(s);
+  }
+  return out;
+}
+
+JointData SimulateJointData(const MixedFrictionTheta& theta,
+                            const JointConfig& config,
+                            const std::vector<double>& v_mm_s,
+                            const std::vector<double>& load_n,
+                            const std::vector<double>& temp_c,
+                            double noise,
+                            unsigned seed) {
+  if (load_n.size() != v_mm_s.size() || temp_c.size() != v_mm_s.size())
+    throw std::invalid_argument("v_mm_s, load_n and temp_c differ in length");
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  JointData d;
+  d.v_mm_s = v_mm_s;
+  d.load_n = load_n;
+  d.temp_c = temp_c;
+  for (std::size_t i = 0; i < v_mm_s.size(); ++i) {
+    const double eta = CalcViscosity(config.lubricant, temp_c[i]);
+    const double s =
+        CalcSommerfeldUm(eta, v_mm_s[i], load_n[i], config.contact);
+    d.eta_pa_s.push_back(eta);
+    d.mu.push_back(SampleContactFriction(theta, config.surface, s, &rng) +
+                   noise * normal(rng));
+  }
+  return d;
+}
+
+}  // namespace frictiond
