@@ -34,5 +34,8 @@ void RegisterReportCommand(CLI::App& app, Globals& g);  // cli_report.cc: report
 void RegisterLuGreCommands(CLI::App& app, Globals& g);  // cli_lugre.cc
 void RegisterExportCommands(CLI::App& app,
                             Globals& g);  // cli_export.cc: export, pair
+void RegisterPaper000Commands(
+    CLI::App& app,
+    Globals& g);  // cli_paper000.cc: target-force, sliding-speed, ...
 
 }  // namespace frictiond::cli
