@@ -10,6 +10,8 @@ namespace frictiond {
 
 namespace {
 
+constexpr double kMinRelativeSpan = 0.02;
+
 // Simple linear regression y = s*x + c over pairs; false when x has no
 // spread.
 bool FitLine(const std::vector<double>& x,
@@ -111,6 +113,23 @@ FormFit FitOn(FrictionForm form,
     out.why = std::to_string(out.samples) + " usable samples (need > " +
               std::to_string(out.params) + ")";
     return out;
+  }
+  if (out.params == 2) {
+    // Like the stochastic fit's min_relative_span: a 5-95 % Fn range below
+    // 2 % of the median cannot tell a slope from noise.
+    std::vector<double> sorted = x;
+    std::sort(sorted.begin(), sorted.end());
+    const auto at = [&sorted](double p) {
+      return sorted[static_cast<std::size_t>(p * (sorted.size() - 1))];
+    };
+    if (!(at(0.95) - at(0.05) >= kMinRelativeSpan * std::fabs(at(0.5)))) {
+      out.why = "fn_n has no span (5-95 % range " +
+                std::to_string(at(0.95) - at(0.05)) + " N < 2 % of median " +
+                std::to_string(at(0.5)) +
+                " N): the Fn dependence cannot be "
+                "identified";
+      return out;
+    }
   }
   bool ok = true;
   switch (form) {

@@ -121,5 +121,24 @@ TEST(FrictionForms, OneStrokeCannotBeComparedAndSizesAreChecked) {
   EXPECT_THROW(CompareFrictionForms({1}, {0.9}, {0}, 1), std::invalid_argument);
 }
 
+TEST(FrictionForms, ConstantLoadIdentifiesOnlyOneParameterForms) {
+  // Like data/microtribo_recip: Fn = 5 N +- 0.005.
+  std::vector<double> fn, mu;
+  std::vector<int> stroke;
+  for (int i = 0; i < 400; ++i) {
+    fn.push_back(5.0 + 0.005 * std::sin(0.37 * i));
+    mu.push_back(0.35 + 0.05 * std::sin(1.3 * i));
+    stroke.push_back(i / 40);
+  }
+  const FormComparison c = CompareFrictionForms(fn, mu, stroke);
+  ASSERT_TRUE(c.valid) << c.why;
+  EXPECT_FALSE(Get(c, FrictionForm::kLinear).valid);
+  EXPECT_NE(Get(c, FrictionForm::kLinear).why.find("no span"),
+            std::string::npos);
+  EXPECT_FALSE(Get(c, FrictionForm::kThirion).valid);
+  EXPECT_TRUE(Get(c, FrictionForm::kCoulomb).valid);
+  EXPECT_TRUE(Get(c, FrictionForm::kSchallamach).valid);
+}
+
 }  // namespace
 }  // namespace frictiond

@@ -68,7 +68,9 @@ struct FormFit {
 double EvalFrictionForm(FrictionForm form, double a, double b, double fn_n);
 
 /// Fits one form to (fn_n, mu) pairs; samples with non-finite values or
-/// fn_n <= 0 (and mu <= 0 for thirion) are skipped.
+/// fn_n <= 0 (and mu <= 0 for thirion) are skipped. Two-parameter forms are
+/// not valid (why says so) when the 5-95 % range of Fn is below 2 % of its
+/// median: constant-load data cannot tell the forms apart.
 /// @throws std::invalid_argument when sizes differ.
 FormFit FitFrictionForm(FrictionForm form,
                         const std::vector<double>& fn_n,
