@@ -162,5 +162,49 @@ TEST_F(Paper000HttpTest, ClientAndCliMuSpreadAndSpanVariability) {
   EXPECT_NE(err.find("subsets"), std::string::npos) << err;
 }
 
+int CountOf(const std::string& text, const std::string& what) {
+  int n = 0;
+  for (std::size_t p = text.find(what); p != std::string::npos;
+       p = text.find(what, p + 1))
+    ++n;
+  return n;
+}
+
+TEST(FrictionReport, SimulatedAndMeasuredData) {
+  TempDir dir("friction_report_test");
+  testing::SimulationSpec spec;
+  spec.strokes = 20;
+  const std::string csv = dir.path() + "/sim.csv";
+  {
+    std::ofstream o(csv);
+    o << FormatStrokeCsv(testing::SimulateStrokes(spec, 9));
+  }
+  const std::string html = dir.path() + "/sim.html";
+  const std::string bin = testing::BinaryPath("friction");
+  int st = std::system(
+      (bin + " report " + csv + " -o " + html + " >/dev/null").c_str());
+  ASSERT_TRUE(WIFEXITED(st) && WEXITSTATUS(st) == 0);
+  std::string text = ReadText(html);
+  EXPECT_EQ(CountOf(text, "<svg"), 5) << text.substr(0, 2000);
+  EXPECT_EQ(CountOf(text, "<tr>"), 7);  // header + 6 claims
+  // Simulated from eq. (1) with an Fn slope: the Fn claims are testable.
+  EXPECT_EQ(CountOf(text, "cannot be tested"), 0) << text.substr(0, 4000);
+  // The measured constant-load data: Fn claims cannot be tested.
+  const std::string measured =
+      testing::SourceDir() + "/data/microtribo_recip/test_data_2.strokes.csv";
+  st = std::system((bin + " report " + measured + " -o " + html +
+                    " --slip-peak-mm-s 0.1 --slip-floor-mm-s 0.02 "
+                    "--median-window-s 0.05 >/dev/null")
+                       .c_str());
+  ASSERT_TRUE(WIFEXITED(st) && WEXITSTATUS(st) == 0);
+  text = ReadText(html);
+  EXPECT_GE(CountOf(text, "cannot be tested"), 2) << text.substr(0, 4000);
+  EXPECT_NE(text.find("does not increase"), std::string::npos);
+  st = std::system((bin + " report " + dir.path() + "/missing.csv -o " + html +
+                    " 2>/dev/null")
+                       .c_str());
+  EXPECT_TRUE(WIFEXITED(st) && WEXITSTATUS(st) == 2);
+}
+
 }  // namespace
 }  // namespace frictiond
