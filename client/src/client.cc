@@ -1,5 +1,7 @@
 #include "frictiond/client/client.h"
 
+#include <cstdio>
+
 #include <httplib.h>
 
 namespace frictiond {
@@ -108,6 +110,80 @@ json FrictionClient::FetchPairFriction(
   return GetJson(WithQuery("/v1/pairs/" + UrlEncode(fingertip_material) + "/" +
                                UrlEncode(object_material) + "/friction",
                            params));
+}
+
+namespace {
+
+std::string NumText(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.17g", x);
+  return buf;
+}
+
+}  // namespace
+
+json FrictionClient::FetchTargetForce(
+    const std::string& material,
+    double fn_n,
+    double v_mm_s,
+    const std::vector<std::pair<std::string, std::string>>& params) {
+  auto all = params;
+  all.insert(all.begin(), {"fingertip", options_.fingertip});
+  all.insert(all.begin(), {"v_mm_s", NumText(v_mm_s)});
+  all.insert(all.begin(), {"fn_n", NumText(fn_n)});
+  return GetJson(
+      WithQuery("/v1/materials/" + UrlEncode(material) + "/target-force", all));
+}
+
+json FrictionClient::FetchSlidingSpeed(
+    const std::string& material,
+    double fn_n,
+    double ft_n,
+    const std::vector<std::pair<std::string, std::string>>& params) {
+  auto all = params;
+  all.insert(all.begin(), {"fingertip", options_.fingertip});
+  all.insert(all.begin(), {"ft_n", NumText(ft_n)});
+  all.insert(all.begin(), {"fn_n", NumText(fn_n)});
+  return GetJson(WithQuery(
+      "/v1/materials/" + UrlEncode(material) + "/sliding-speed", all));
+}
+
+json FrictionClient::FetchConditionalSlipLikelihood(const std::string& material,
+                                                    double fn_n,
+                                                    double ratio) {
+  return GetJson(WithQuery(
+      "/v1/materials/" + UrlEncode(material) + "/conditional-slip-likelihood",
+      {{"fn_n", NumText(fn_n)},
+       {"ratio", NumText(ratio)},
+       {"fingertip", options_.fingertip}}));
+}
+
+json FrictionClient::FetchForms(const std::string& material, int folds) {
+  return GetJson(WithQuery(
+      "/v1/materials/" + UrlEncode(material) + "/forms",
+      {{"folds", std::to_string(folds)}, {"fingertip", options_.fingertip}}));
+}
+
+json FrictionClient::FetchMuSpread(
+    const std::string& material,
+    double fn_n,
+    double v_mm_s,
+    const std::vector<std::pair<std::string, std::string>>& params) {
+  auto all = params;
+  all.insert(all.begin(), {"fingertip", options_.fingertip});
+  all.insert(all.begin(), {"v_mm_s", NumText(v_mm_s)});
+  all.insert(all.begin(), {"fn_n", NumText(fn_n)});
+  return GetJson(
+      WithQuery("/v1/materials/" + UrlEncode(material) + "/mu-spread", all));
+}
+
+json FrictionClient::FetchSpanVariability(
+    const std::string& material,
+    const std::vector<std::pair<std::string, std::string>>& params) {
+  auto all = params;
+  all.insert(all.begin(), {"fingertip", options_.fingertip});
+  return GetJson(WithQuery(
+      "/v1/materials/" + UrlEncode(material) + "/span-variability", all));
 }
 
 json FrictionClient::GetJson(const std::string& path) {

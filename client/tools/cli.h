@@ -35,5 +35,8 @@ void RegisterLuGreCommands(CLI::App& app, Globals& g);  // cli_lugre.cc
 void RegisterExportCommands(CLI::App& app,
                             Globals& g);  // cli_export.cc: export, pair
 void RegisterJointCommands(CLI::App& app, Globals& g);  // cli_joint.cc
+void RegisterPaper000Commands(
+    CLI::App& app,
+    Globals& g);  // cli_paper000.cc: target-force, sliding-speed, ...
 
 }  // namespace frictiond::cli

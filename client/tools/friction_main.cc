@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
   frictiond::cli::RegisterLuGreCommands(app, g);
   frictiond::cli::RegisterExportCommands(app, g);
   frictiond::cli::RegisterJointCommands(app, g);
+  frictiond::cli::RegisterPaper000Commands(app, g);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -109,6 +109,55 @@ class FrictionClient {
       const std::string& fingertip_material,
       const std::string& object_material,
       const std::vector<std::pair<std::string, std::string>>& params = {});
+  /// Target tangential force for sliding at v_mm_s under fn_n (paper 000,
+  /// eq. 3; GET /v1/materials/{id}/target-force): {"ft_n", "mu",
+  /// "interval95_n", "extrapolated", ...}. params: model covariates,
+  /// version. The fingertip is options().fingertip.
+  /// @throws ClientError: 400 names the bad parameter, 404 unknown material.
+  nlohmann::json FetchTargetForce(
+      const std::string& material,
+      double fn_n,
+      double v_mm_s,
+      const std::vector<std::pair<std::string, std::string>>& params = {});
+  /// Sliding speed predicted from measured forces of a slipping contact
+  /// (paper 000, eq. 4; GET /v1/materials/{id}/sliding-speed): {"v_mm_s",
+  /// "interval95", "b1_t", "below_model_range", "extrapolated", ...}.
+  /// @throws ClientError: 400 bad parameter, 404 unknown material, 422 the
+  /// model has no identified speed slope.
+  nlohmann::json FetchSlidingSpeed(
+      const std::string& material,
+      double fn_n,
+      double ft_n,
+      const std::vector<std::pair<std::string, std::string>>& params = {});
+  /// Conditional slip likelihood L(Fn, Ft/Fn) of paper 000 eq. (2) (GET
+  /// /v1/materials/{id}/conditional-slip-likelihood?fn_n=&ratio=):
+  /// {"likelihood", "c1", "c2", "extrapolated", "fn_range_n", ...};
+  /// "extrapolated" is true when fn_n lies outside the fitted Fn windows.
+  /// @throws ClientError: 400 bad parameter, 404 unknown material, 422 the
+  /// model has no conditional likelihood.
+  nlohmann::json FetchConditionalSlipLikelihood(const std::string& material,
+                                                double fn_n,
+                                                double ratio);
+  /// The alternative forms of mu = f(Fn) (Table II, section I) compared by
+  /// leave-strokes-out error (GET /v1/materials/{id}/forms): {"best",
+  /// "forms": [{"form", "formula", "a", "b", "r2", "cv_mae"}, ...], ...}.
+  nlohmann::json FetchForms(const std::string& material, int folds = 5);
+  /// Spread of mu inside Fn and v windows around (fn_n, v_mm_s) (paper 000
+  /// III-B, Fig. 6; GET /v1/materials/{id}/mu-spread): {"fn_windows",
+  /// "v_windows", "both_windows": [{"fn_width_n", "v_width_mm_s",
+  /// "samples", "std_mu"}, ...], "sigma_eps"}. params: fn_widths_n,
+  /// v_widths_mm_s (comma-separated, "inf" = no window).
+  nlohmann::json FetchMuSpread(
+      const std::string& material,
+      double fn_n,
+      double v_mm_s,
+      const std::vector<std::pair<std::string, std::string>>& params = {});
+  /// Fig. 10 experiment on the stored strokes (GET
+  /// /v1/materials/{id}/span-variability): spread of b0, b1, b2 per span
+  /// bin. params: subsets, max_strokes, seed, bin_pct.
+  nlohmann::json FetchSpanVariability(
+      const std::string& material,
+      const std::vector<std::pair<std::string, std::string>>& params = {});
   /// Generic text GET (any Content-Type); *content_type receives the reply's
   /// Content-Type when not null. @throws ClientError like GetJson.
   std::string GetText(const std::string& path_and_query,

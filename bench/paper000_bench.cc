@@ -1,0 +1,168 @@
+// Paper 000 benchmarks beside NumPy/SciPy (bench/ref/paper000_ref.py), run
+// in the same invocation:
+//   ols_1e6            eq. (1) by FitOls on 1e6 samples (R^2, F, p, SE,
+//                      covariance) vs numpy.linalg.lstsq + the same
+//                      statistics; median of 5.
+//   slip_likelihood_ns one CalcSlipLikelihood(model, Fn, Ft) call as a robot
+//                      would make it in its loop, vs scipy.special.expit
+//                      vectorised over 1e6 points (per point).
+// Usage: paper000 [--python PATH]
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <iostream>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <Eigen/Dense>
+#include <nlohmann/json.hpp>
+
+#include "frictiond/estimators/regression.h"
+#include "frictiond/estimators/stochastic_model.h"
+#include "frictiond/testing/stroke_simulator.h"
+
+#include "bench_json.h"
+
+namespace frictiond::bench {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+std::string RunCommand(const std::string& cmd) {
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) throw std::runtime_error("cannot run: " + cmd);
+  std::string out;
+  char buf[4096];
+  std::size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
+  const int rc = pclose(p);
+  if (rc != 0)
+    throw std::runtime_error("'" + cmd + "' exited with status " +
+                             std::to_string(rc));
+  return out;
+}
+
+double Seconds(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double>(b - a).count();
+}
+
+void BenchOls(const std::string& python, const std::string& script) {
+  const std::string name = "ols_1e6";
+  const std::string goal = ">= 20x faster than numpy/scipy";
+  try {
+    const int n = 1000000;
+    std::mt19937_64 rng(1);
+    std::uniform_real_distribution<double> v_u(5.0, 80.0), fn_u(0.5, 4.5);
+    std::normal_distribution<double> eps(0.0, 0.05);
+    Eigen::MatrixXd X(n, 3);
+    Eigen::VectorXd y(n);
+    for (int i = 0; i < n; ++i) {
+      const double v = v_u(rng), fn = fn_u(rng);
+      X(i, 0) = 1.0;
+      X(i, 1) = v;
+      X(i, 2) = fn;
+      y(i) = 0.9 + 0.004 * v - 0.06 * fn + eps(rng);
+    }
+    std::vector<double> ms;
+    OlsResult r;
+    for (int k = 0; k < 5; ++k) {
+      const auto t0 = Clock::now();
+      r = FitOls(X, y);
+      ms.push_back(1e3 * Seconds(t0, Clock::now()));
+    }
+    if (r.status != FitStatus::kOk) throw std::runtime_error(r.why);
+    std::sort(ms.begin(), ms.end());
+    const nlohmann::json ref = nlohmann::json::parse(
+        RunCommand(python + " " + script + " ols --n 1000000 --repeats 5"));
+    BenchResult b;
+    b.bench = name;
+    b.value = ms[2];
+    b.unit = "ms";
+    b.baseline = ref.at("ms").get<double>();
+    b.baseline_name =
+        "numpy.linalg.lstsq + R2/F/p/SE (scipy.stats), same size, same run";
+    b.lower_is_better = true;
+    b.goal = goal;
+    b.note = "median of 5; b2 " + std::to_string(r.beta(2)) + " (numpy " +
+             std::to_string(ref.at("beta").at(2).get<double>()) + ")";
+    PrintBenchLine(b);
+  } catch (const std::exception& e) {
+    std::printf("%s\n", FormatBenchError(name, e.what(), goal).c_str());
+  }
+}
+
+void BenchLikelihood(const std::string& python, const std::string& script) {
+  const std::string name = "slip_likelihood_ns";
+  const std::string goal = "<= 50 ns per evaluation";
+  try {
+    testing::SimulationSpec spec;
+    spec.strokes = 6;
+    const StochasticFit fit =
+        FitStochasticModel(testing::SimulateStrokes(spec, 3));
+    if (!fit.model.likelihood.valid)
+      throw std::runtime_error("no sigmoid: " + fit.model.likelihood.why);
+    // 4096 operating points, evaluated in a loop as a controller would.
+    std::mt19937_64 rng(2);
+    std::uniform_real_distribution<double> fn_u(0.5, 4.5), r_u(0.2, 1.6);
+    std::vector<double> fn(4096), ft(4096);
+    for (std::size_t i = 0; i < fn.size(); ++i) {
+      fn[i] = fn_u(rng);
+      ft[i] = fn[i] * r_u(rng);
+    }
+    const int kCalls = 20000000;
+    double best_ns = 1e300, sink = 0;
+    for (int rep = 0; rep < 3; ++rep) {
+      const auto t0 = Clock::now();
+      for (int k = 0; k < kCalls; ++k) {
+        const std::size_t i = static_cast<std::size_t>(k) & 4095;
+        sink += CalcSlipLikelihood(fit.model, fn[i], ft[i]);
+      }
+      best_ns = std::min(best_ns, 1e9 * Seconds(t0, Clock::now()) / kCalls);
+    }
+    const nlohmann::json ref = nlohmann::json::parse(
+        RunCommand(python + " " + script + " likelihood --n 1000000"));
+    BenchResult b;
+    b.bench = name;
+    b.value = best_ns;
+    b.unit = "ns";
+    b.baseline = ref.at("ns_vector").get<double>();
+    b.baseline_name =
+        "scipy.special.expit vectorised over 1e6 points, per point";
+    b.lower_is_better = true;
+    b.goal = goal;
+    b.note =
+        "one call per point (best of 3 x 2e7); a Python call per point "
+        "takes " +
+        std::to_string(ref.at("ns_scalar").get<double>()) + " ns; checksum " +
+        std::to_string(sink > 0);
+    PrintBenchLine(b);
+  } catch (const std::exception& e) {
+    std::printf("%s\n", FormatBenchError(name, e.what(), goal).c_str());
+  }
+}
+
+}  // namespace
+}  // namespace frictiond::bench
+
+int main(int argc, char** argv) {
+  std::string python = "/usr/bin/python3";
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--python" && i + 1 < argc) {
+      python = argv[++i];
+    } else {
+      std::cerr << "usage: paper000 [--python PATH]\n";
+      return 2;
+    }
+  }
+  const char* env_root = std::getenv("FRICTIOND_SOURCE_DIR");
+  const std::string script =
+      std::string(env_root ? env_root : FRICTIOND_SOURCE_DIR) +
+      "/bench/ref/paper000_ref.py";
+  frictiond::bench::BenchOls(python, script);
+  frictiond::bench::BenchLikelihood(python, script);
+  return 0;
+}

@@ -1,0 +1,229 @@
+#include "frictiond/estimators/slip_likelihood.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace frictiond {
+
+namespace {
+
+std::string Num(double x) { return std::to_string(x); }
+
+}  // namespace
+
+std::vector<SlipRatioBin> CalcBinnedSlipRatio(const std::vector<double>& ratio,
+                                              const std::vector<int>& slip,
+                                              double bin_width) {
+  if (ratio.size() != slip.size()) {
+    throw std::invalid_argument(
+        "slip has " + std::to_string(slip.size()) + " entries, ratio " +
+        std::to_string(ratio.size()) + " (must be equal)");
+  }
+  if (!(bin_width > 0) || !std::isfinite(bin_width)) {
+    throw std::invalid_argument("bin_width = " + Num(bin_width) +
+                                " (must be finite and > 0)");
+  }
+  double lo = std::numeric_limits<double>::infinity();
+  double hi = -lo;
+  for (double r : ratio) {
+    if (!std::isfinite(r)) continue;
+    lo = std::min(lo, r);
+    hi = std::max(hi, r);
+  }
+  std::vector<SlipRatioBin> bins;
+  if (!(lo <= hi)) return bins;
+  const double start = std::floor(lo / bin_width) * bin_width;
+  const double count = std::floor((hi - start) / bin_width) + 1;
+  if (!(count <= 100000)) {
+    throw std::invalid_argument("bin_width = " + Num(bin_width) +
+                                " gives more than 100000 bins over the "
+                                "ratio range");
+  }
+  bins.resize(static_cast<std::size_t>(count));
+  for (std::size_t b = 0; b < bins.size(); ++b) {
+    bins[b].ratio_lo = start + b * bin_width;
+    bins[b].ratio_hi = start + (b + 1) * bin_width;
+  }
+  for (std::size_t i = 0; i < ratio.size(); ++i) {
+    if (!std::isfinite(ratio[i])) continue;
+    std::size_t b =
+        static_cast<std::size_t>(std::floor((ratio[i] - start) / bin_width));
+    b = std::min(b, bins.size() - 1);
+    ++bins[b].samples;
+    bins[b].slipping += slip[i] != 0;
+  }
+  for (SlipRatioBin& b : bins) {
+    b.slip_ratio =
+        b.samples > 0 ? static_cast<double>(b.slipping) / b.samples : 0.0;
+  }
+  return bins;
+}
+
+bool ConditionalSlipOptions::IsValid(std::string* why) const {
+  auto fail = [why](const std::string& s) {
+    if (why) *why = s;
+    return false;
+  };
+  if (!(step_n > 0) || !std::isfinite(step_n))
+    return fail("step_n = " + Num(step_n) + " (must be finite and > 0)");
+  if (!(window_n > 0) || !std::isfinite(window_n))
+    return fail("window_n = " + Num(window_n) + " (must be finite and > 0)");
+  if (std::isnan(fn_min_n) != std::isnan(fn_max_n))
+    return fail("fn_min_n and fn_max_n must both be given or both be NaN");
+  if (!std::isnan(fn_min_n) &&
+      (!(fn_min_n <= fn_max_n) || !std::isfinite(fn_min_n) ||
+       !std::isfinite(fn_max_n)))
+    return fail("fn_min_n = " + Num(fn_min_n) + ", fn_max_n = " +
+                Num(fn_max_n) + " (must be finite with fn_min_n <= fn_max_n)");
+  if (min_samples < 2)
+    return fail("min_samples = " + std::to_string(min_samples) +
+                " (must be >= 2)");
+  if (min_each_class < 1)
+    return fail("min_each_class = " + std::to_string(min_each_class) +
+                " (must be >= 1)");
+  if (!(never_level > 0 && never_level < always_level && always_level < 1))
+    return fail("never_level = " + Num(never_level) + ", always_level = " +
+                Num(always_level) + " (must satisfy 0 < never < always < 1)");
+  if (max_windows < 1)
+    return fail("max_windows = " + std::to_string(max_windows) +
+                " (must be >= 1)");
+  return true;
+}
+
+ConditionalSlipLikelihood FitConditionalSlipLikelihood(
+    const std::vector<double>& fn_n,
+    const std::vector<double>& ratio,
+    const std::vector<int>& slip,
+    const ConditionalSlipOptions& options) {
+  std::string why;
+  if (!options.IsValid(&why)) throw std::invalid_argument(why);
+  if (fn_n.size() != ratio.size() || slip.size() != ratio.size()) {
+    throw std::invalid_argument(
+        "fn_n, ratio and slip have " + std::to_string(fn_n.size()) + ", " +
+        std::to_string(ratio.size()) + " and " + std::to_string(slip.size()) +
+        " entries (must be equal)");
+  }
+  ConditionalSlipLikelihood out;
+  out.step_n = options.step_n;
+  out.window_n = options.window_n;
+  // Finite samples, sorted by Fn so each window is a contiguous range.
+  std::vector<std::size_t> order;
+  order.reserve(fn_n.size());
+  for (std::size_t i = 0; i < fn_n.size(); ++i) {
+    if (std::isfinite(fn_n[i]) && std::isfinite(ratio[i])) order.push_back(i);
+  }
+  if (order.empty()) {
+    out.why = "no finite samples";
+    return out;
+  }
+  std::sort(order.begin(), order.end(), [&fn_n](std::size_t a, std::size_t b) {
+    return fn_n[a] < fn_n[b];
+  });
+  const double half = 0.5 * options.window_n;
+  double first = options.fn_min_n, last = options.fn_max_n;
+  if (std::isnan(first)) {
+    // Centres on the grid of multiples of step_n, half a window inside the
+    // data's Fn range (rounded to the nearest grid point).
+    const double step = options.step_n;
+    first = step * std::round((fn_n[order.front()] + half) / step);
+    last = step * std::round((fn_n[order.back()] - half) / step);
+    if (last < first) {
+      first = last =
+          step *
+          std::round(0.5 * (fn_n[order.front()] + fn_n[order.back()]) / step);
+    }
+  }
+  const double span = (last - first) / options.step_n;
+  if (!(span < options.max_windows)) {
+    throw std::invalid_argument(
+        "window centres from " + Num(first) + " to " + Num(last) +
+        " N every step_n = " + Num(options.step_n) +
+        " N exceed max_windows = " + std::to_string(options.max_windows));
+  }
+  const int n_windows = static_cast<int>(std::floor(span + 1e-9)) + 1;
+  std::vector<double> r;
+  std::vector<int> s;
+  for (int w = 0; w < n_windows; ++w) {
+    SlipWindowFit win;
+    win.fn_center_n = first + w * options.step_n;
+    win.fn_lo_n = win.fn_center_n - half;
+    win.fn_hi_n = win.fn_center_n + half;
+    auto lo = std::lower_bound(
+        order.begin(),
+        order.end(),
+        win.fn_lo_n,
+        [&fn_n](std::size_t i, double x) { return fn_n[i] < x; });
+    r.clear();
+    s.clear();
+    for (auto it = lo; it != order.end() && fn_n[*it] < win.fn_hi_n; ++it) {
+      r.push_back(ratio[*it]);
+      s.push_back(slip[*it] != 0);
+      win.slipping += slip[*it] != 0;
+    }
+    win.samples = static_cast<int>(r.size());
+    const int stick = win.samples - win.slipping;
+    if (win.samples < options.min_samples) {
+      win.fit.why = std::to_string(win.samples) + " samples (fewer than " +
+                    std::to_string(options.min_samples) + ")";
+    } else if (win.slipping < options.min_each_class ||
+               stick < options.min_each_class) {
+      win.fit.why = std::to_string(win.slipping) + " slip and " +
+                    std::to_string(stick) + " stick samples (each must be >= " +
+                    std::to_string(options.min_each_class) + ")";
+    } else {
+      win.fit =
+          FitSlipLikelihood(r, s, options.never_level, options.always_level);
+    }
+    if (win.fit.valid) {
+      out.knot_fn_n.push_back(win.fn_center_n);
+      out.knot_c1.push_back(win.fit.c1);
+      out.knot_c2.push_back(win.fit.c2);
+    }
+    out.windows.push_back(std::move(win));
+  }
+  out.valid = !out.knot_fn_n.empty();
+  if (!out.valid) {
+    out.why = "no Fn window had enough slip and stick samples (" +
+              std::to_string(n_windows) + " windows of " +
+              Num(options.window_n) + " N tried)";
+  }
+  return out;
+}
+
+ConditionalSlipValue CalcConditionalSlipLikelihood(
+    const ConditionalSlipLikelihood& L, double fn_n, double ratio) {
+  if (!L.valid || L.knot_fn_n.empty() ||
+      L.knot_c1.size() != L.knot_fn_n.size() ||
+      L.knot_c2.size() != L.knot_fn_n.size()) {
+    throw std::invalid_argument("conditional slip likelihood is not fitted: " +
+                                L.why);
+  }
+  if (!(fn_n > 0) || !std::isfinite(fn_n))
+    throw std::invalid_argument("fn_n = " + Num(fn_n) +
+                                " (must be finite and > 0)");
+  if (!std::isfinite(ratio))
+    throw std::invalid_argument("ratio = " + Num(ratio) + " (must be finite)");
+  ConditionalSlipValue out;
+  const std::vector<double>& x = L.knot_fn_n;
+  if (fn_n <= x.front()) {
+    out.c1 = L.knot_c1.front();
+    out.c2 = L.knot_c2.front();
+    out.extrapolated = fn_n < x.front();
+  } else if (fn_n >= x.back()) {
+    out.c1 = L.knot_c1.back();
+    out.c2 = L.knot_c2.back();
+    out.extrapolated = fn_n > x.back();
+  } else {
+    const std::size_t k = static_cast<std::size_t>(
+        std::upper_bound(x.begin(), x.end(), fn_n) - x.begin());
+    const double w = (fn_n - x[k - 1]) / (x[k] - x[k - 1]);
+    out.c1 = (1 - w) * L.knot_c1[k - 1] + w * L.knot_c1[k];
+    out.c2 = (1 - w) * L.knot_c2[k - 1] + w * L.knot_c2[k];
+  }
+  // Eq. (2).
+  out.likelihood = 1.0 / (1.0 + std::exp(-out.c1 * (ratio - out.c2)));
+  return out;
+}
+
+}  // namespace frictiond

@@ -1,0 +1,187 @@
+#include "frictiond/estimators/slip_likelihood.h"
+
+#include <cmath>
+#include <random>
+
+#include <gtest/gtest.h>
+
+namespace frictiond {
+namespace {
+
+// Planted truth of eq. (2): c1 = f1(Fn), c2 = f2(Fn), both far from 0 and
+// varying with Fn (c2 falls with Fn as mu does in eq. 1).
+double TrueC1(double fn) { return 10.0 + 3.0 * fn; }
+double TrueC2(double fn) { return 1.0 - 0.08 * fn; }
+
+struct Labelled {
+  std::vector<double> fn, ratio;
+  std::vector<int> slip;
+};
+
+// n samples, Fn uniform in [0.5, 4.5], ratio uniform in [0.2, 1.6], slip
+// drawn from eq. (2) with the planted c1, c2 (or constants when flat).
+Labelled Simulate(int n, std::uint64_t seed, bool flat = false) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> fn_u(0.5, 4.5), r_u(0.2, 1.6), u(0, 1);
+  Labelled d;
+  for (int i = 0; i < n; ++i) {
+    const double fn = fn_u(rng), r = r_u(rng);
+    const double c1 = flat ? 16.0 : TrueC1(fn);
+    const double c2 = flat ? 0.8 : TrueC2(fn);
+    d.fn.push_back(fn);
+    d.ratio.push_back(r);
+    d.slip.push_back(u(rng) < 1.0 / (1.0 + std::exp(-c1 * (r - c2))));
+  }
+  return d;
+}
+
+// Least-squares slope of the knots' c2 against Fn.
+double KnotSlope(const ConditionalSlipLikelihood& L) {
+  const std::size_t n = L.knot_fn_n.size();
+  double mx = 0, my = 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    mx += L.knot_fn_n[k] / n;
+    my += L.knot_c2[k] / n;
+  }
+  double sxy = 0, sxx = 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    sxy += (L.knot_fn_n[k] - mx) * (L.knot_c2[k] - my);
+    sxx += (L.knot_fn_n[k] - mx) * (L.knot_fn_n[k] - mx);
+  }
+  return sxy / sxx;
+}
+
+TEST(ConditionalSlipLikelihood, RecoversPlantedC1C2PerWindow) {
+  const std::uint64_t seed = 17;
+  const Labelled d = Simulate(60000, seed);
+  const ConditionalSlipLikelihood L =
+      FitConditionalSlipLikelihood(d.fn, d.ratio, d.slip);
+  ASSERT_TRUE(L.valid) << L.why;
+  // Centres every 0.2 N from 0.8 to 4.2 N (data 0.5..4.5, 0.6 N windows).
+  ASSERT_EQ(L.windows.size(), 18u);
+  EXPECT_NEAR(L.windows.front().fn_center_n, 0.8, 0.01);
+  EXPECT_NEAR(L.windows.back().fn_center_n, 4.2, 0.01);
+  ASSERT_EQ(L.knot_fn_n.size(), 18u);
+  for (const SlipWindowFit& w : L.windows) {
+    const double fn = w.fn_center_n;
+    const double se_c1 = std::sqrt(w.fit.P_c(0, 0));
+    const double se_c2 = std::sqrt(w.fit.P_c(1, 1));
+    // A 0.6 N window mixes c2 values 0.048 apart, which flattens the
+    // sigmoid a little: c1 is biased low by a few percent.
+    EXPECT_NEAR(w.fit.c1, TrueC1(fn), 4 * se_c1 + 0.08 * TrueC1(fn))
+        << "fn " << fn << " seed " << seed;
+    EXPECT_NEAR(w.fit.c2, TrueC2(fn), 4 * se_c2 + 0.005)
+        << "fn " << fn << " seed " << seed;
+  }
+  // Interpolated between knots.
+  for (double fn : {1.05, 2.33, 3.9}) {
+    const ConditionalSlipValue v = CalcConditionalSlipLikelihood(L, fn, 0.8);
+    EXPECT_FALSE(v.extrapolated) << fn;
+    EXPECT_NEAR(v.c2, TrueC2(fn), 0.02) << fn;
+    const double truth =
+        1.0 / (1.0 + std::exp(-TrueC1(fn) * (0.8 - TrueC2(fn))));
+    EXPECT_NEAR(v.likelihood, truth, 0.05) << fn;
+  }
+  EXPECT_NEAR(KnotSlope(L), -0.08, 0.01);
+}
+
+TEST(ConditionalSlipLikelihood, ExtrapolationIsFlaggedNotSilent) {
+  const Labelled d = Simulate(20000, 5);
+  const ConditionalSlipLikelihood L =
+      FitConditionalSlipLikelihood(d.fn, d.ratio, d.slip);
+  ASSERT_TRUE(L.valid) << L.why;
+  const ConditionalSlipValue lo = CalcConditionalSlipLikelihood(L, 0.3, 0.9);
+  const ConditionalSlipValue hi = CalcConditionalSlipLikelihood(L, 6.0, 0.9);
+  const ConditionalSlipValue mid = CalcConditionalSlipLikelihood(L, 2.0, 0.9);
+  EXPECT_TRUE(lo.extrapolated);
+  EXPECT_TRUE(hi.extrapolated);
+  EXPECT_FALSE(mid.extrapolated);
+  EXPECT_EQ(lo.c2, L.knot_c2.front());
+  EXPECT_EQ(hi.c2, L.knot_c2.back());
+}
+
+TEST(ConditionalSlipLikelihood, BeatsTheUnconditionalSigmoidOnHeldOutData) {
+  const Labelled train = Simulate(30000, 3), test = Simulate(30000, 4);
+  const ConditionalSlipLikelihood L =
+      FitConditionalSlipLikelihood(train.fn, train.ratio, train.slip);
+  const SlipLikelihoodFit flat = FitSlipLikelihood(train.ratio, train.slip);
+  ASSERT_TRUE(L.valid && flat.valid);
+  double loss_cond = 0, loss_flat = 0;
+  for (std::size_t i = 0; i < test.fn.size(); ++i) {
+    const double pc =
+        CalcConditionalSlipLikelihood(L, test.fn[i], test.ratio[i]).likelihood;
+    const double pf =
+        1.0 / (1.0 + std::exp(-flat.c1 * (test.ratio[i] - flat.c2)));
+    auto nll = [&](double p) {
+      p = std::min(std::max(p, 1e-12), 1 - 1e-12);
+      return test.slip[i] ? -std::log(p) : -std::log(1 - p);
+    };
+    loss_cond += nll(pc);
+    loss_flat += nll(pf);
+  }
+  EXPECT_LT(loss_cond, 0.9 * loss_flat)
+      << "conditional " << loss_cond << " flat " << loss_flat;
+}
+
+TEST(ConditionalSlipLikelihood, NullCaseFindsNoFnDependence) {
+  const Labelled d = Simulate(40000, 9, /*flat=*/true);
+  const ConditionalSlipLikelihood L =
+      FitConditionalSlipLikelihood(d.fn, d.ratio, d.slip);
+  ASSERT_TRUE(L.valid) << L.why;
+  EXPECT_NEAR(KnotSlope(L), 0.0, 0.01);
+}
+
+TEST(ConditionalSlipLikelihood, ErrorsShrinkWithMoreData) {
+  auto mean_abs_err = [](int n) {
+    const Labelled d = Simulate(n, 21);
+    const ConditionalSlipLikelihood L =
+        FitConditionalSlipLikelihood(d.fn, d.ratio, d.slip);
+    double e = 0;
+    for (std::size_t k = 0; k < L.knot_fn_n.size(); ++k)
+      e += std::fabs(L.knot_c2[k] - TrueC2(L.knot_fn_n[k]));
+    return e / std::max<std::size_t>(1, L.knot_fn_n.size());
+  };
+  EXPECT_LT(mean_abs_err(64000), 0.6 * mean_abs_err(4000));
+}
+
+TEST(ConditionalSlipLikelihood, ConfigurableWindowsAndUnusableWindows) {
+  const Labelled d = Simulate(20000, 13);
+  ConditionalSlipOptions o;
+  o.step_n = 0.5;
+  o.window_n = 1.0;
+  o.fn_min_n = 1.0;
+  o.fn_max_n = 6.0;  // beyond the data: windows above 5 N have no samples
+  const ConditionalSlipLikelihood L =
+      FitConditionalSlipLikelihood(d.fn, d.ratio, d.slip, o);
+  ASSERT_TRUE(L.valid) << L.why;
+  ASSERT_EQ(L.windows.size(), 11u);
+  EXPECT_FALSE(L.windows.back().fit.valid);
+  EXPECT_NE(L.windows.back().fit.why.find("samples"), std::string::npos);
+  EXPECT_LT(L.knot_fn_n.back(), 5.0);
+  o.window_n = 0;
+  EXPECT_THROW(FitConditionalSlipLikelihood(d.fn, d.ratio, d.slip, o),
+               std::invalid_argument);
+  const ConditionalSlipLikelihood none =
+      FitConditionalSlipLikelihood({}, {}, {});
+  EXPECT_FALSE(none.valid);
+  EXPECT_THROW(CalcConditionalSlipLikelihood(none, 1.0, 0.5),
+               std::invalid_argument);
+}
+
+TEST(BinnedSlipRatio, CountsPerBin) {
+  const std::vector<double> r = {0.05, 0.12, 0.18, 0.31, NAN};
+  const std::vector<int> s = {0, 1, 0, 1, 1};
+  const std::vector<SlipRatioBin> b = CalcBinnedSlipRatio(r, s, 0.1);
+  ASSERT_EQ(b.size(), 4u);
+  EXPECT_EQ(b[0].samples, 1);
+  EXPECT_EQ(b[1].samples, 2);
+  EXPECT_EQ(b[1].slipping, 1);
+  EXPECT_DOUBLE_EQ(b[1].slip_ratio, 0.5);
+  EXPECT_EQ(b[2].samples, 0);
+  EXPECT_DOUBLE_EQ(b[3].slip_ratio, 1.0);
+  EXPECT_THROW(CalcBinnedSlipRatio(r, s, 0.0), std::invalid_argument);
+  EXPECT_THROW(CalcBinnedSlipRatio(r, {0}, 0.1), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace frictiond
