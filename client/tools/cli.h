@@ -4,10 +4,12 @@
 /// subcommands. A command reports failure by printing to stderr and throwing
 /// CLI::RuntimeError(exit_code).
 
+#include <functional>
 #include <string>
 
 #include <CLI/CLI.hpp>
 
+#include "frictiond/client/client.h"
 #include "frictiond/estimators/stroke_data.h"
 
 namespace frictiond::cli {
@@ -22,6 +24,13 @@ struct Globals {
 /// Reads and parses a stroke CSV file.
 /// @throws CLI::RuntimeError(2) after printing "FILE: line N: ..." to stderr.
 StrokeData ReadStrokeCsvFile(const std::string& path);
+/// A client for the daemon and fingertip the global options name.
+FrictionClient MakeClient(const Globals& g);
+/// Runs a command body. A ClientError prints the daemon's message (with the
+/// stroke to perform when the daemon requested an identification, else the
+/// error body, which names the field) and exits 1; std::invalid_argument (a
+/// bad argument caught before asking the daemon) prints why and exits 2.
+void RunCommand(const std::function<void()>& body);
 /// Reads a whole file. @throws CLI::RuntimeError(2) after printing why.
 std::string ReadFileOrFail(const std::string& path);
 

@@ -8,6 +8,32 @@
 
 namespace frictiond::cli {
 
+FrictionClient MakeClient(const Globals& g) {
+  ClientOptions o;
+  o.base_url = g.server;
+  o.fingertip = g.fingertip;
+  return FrictionClient(o);
+}
+
+void RunCommand(const std::function<void()>& body) {
+  try {
+    body();
+  } catch (const ClientError& e) {
+    std::cerr << "friction: " << e.what() << "\n";
+    const nlohmann::json& b = e.body();
+    if (b.is_object() && b.contains("identification")) {
+      std::cerr << "identification requested; stroke to perform:\n"
+                << b["identification"]["stroke"].dump(2) << "\n";
+    } else if (b.is_object()) {
+      std::cerr << b.dump(2) << "\n";
+    }
+    throw CLI::RuntimeError(1);
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "friction: " << e.what() << "\n";
+    throw CLI::RuntimeError(2);
+  }
+}
+
 std::string ReadFileOrFail(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) {

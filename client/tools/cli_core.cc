@@ -16,32 +16,6 @@ using nlohmann::json;
 
 namespace {
 
-FrictionClient MakeClient(const Globals& g) {
-  ClientOptions o;
-  o.base_url = g.server;
-  o.fingertip = g.fingertip;
-  return FrictionClient(o);
-}
-
-// Runs a command body, turning client errors into exit code 1 with the
-// daemon's message (and the identification request for unknown materials).
-template <typename F>
-void Run(F&& body) {
-  try {
-    body();
-  } catch (const ClientError& e) {
-    std::cerr << "friction: " << e.what() << "\n";
-    if (e.body().is_object() && e.body().contains("identification")) {
-      std::cerr << "identification requested; stroke to perform:\n"
-                << e.body()["identification"]["stroke"].dump(2) << "\n";
-    }
-    throw CLI::RuntimeError(1);
-  } catch (const std::invalid_argument& e) {
-    std::cerr << "friction: " << e.what() << "\n";
-    throw CLI::RuntimeError(2);
-  }
-}
-
 void PrintModelSummary(const ModelSet& m) {
   std::printf("material %s  fingertip %s  version %d  (%s)\n",
               m.material.c_str(),
@@ -108,7 +82,7 @@ void RegisterCoreCommands(CLI::App& app, Globals& g) {
     static bool as_json = false;
     cmd->add_flag("--json", as_json, "print JSON");
     cmd->callback([&g] {
-      Run([&] {
+      RunCommand([&] {
         FrictionClient c = MakeClient(g);
         if (as_json) {
           std::cout << c.GetJson("/v1/materials").dump(2) << "\n";
@@ -136,7 +110,7 @@ void RegisterCoreCommands(CLI::App& app, Globals& g) {
     cmd->add_option("--version", version, "model version (default: newest)");
     cmd->add_flag("--json", as_json, "print the model JSON");
     cmd->callback([&g] {
-      Run([&] {
+      RunCommand([&] {
         FrictionClient c = MakeClient(g);
         const ModelSet m = c.FetchModel(id, version);
         if (as_json) {
@@ -161,7 +135,7 @@ void RegisterCoreCommands(CLI::App& app, Globals& g) {
     AddLabellingOptions(cmd, &peak, &floor);
     cmd->callback([&g] {
       const std::string csv = ReadFileOrFail(file);
-      Run([&] {
+      RunCommand([&] {
         ClientOptions o;
         o.base_url = g.server;
         o.fingertip = g.fingertip;
@@ -189,7 +163,7 @@ void RegisterCoreCommands(CLI::App& app, Globals& g) {
     cmd->add_option("--fn-n", fn, "normal force [N]")->required();
     cmd->add_option("--v-mm-s", v, "sliding speed [mm/s]")->required();
     cmd->callback([&g] {
-      Run([&] {
+      RunCommand([&] {
         if (!(fn > 0))
           throw std::invalid_argument("--fn-n = " + std::to_string(fn) +
                                       " (must be > 0)");
@@ -222,7 +196,7 @@ void RegisterCoreCommands(CLI::App& app, Globals& g) {
     cmd->add_option("--fn-n", fn, "normal force [N]")->required();
     cmd->add_option("--ft-n", ft, "tangential force [N]")->required();
     cmd->callback([&g] {
-      Run([&] {
+      RunCommand([&] {
         if (!(fn > 0))
           throw std::invalid_argument("--fn-n = " + std::to_string(fn) +
                                       " (must be > 0)");
@@ -257,7 +231,7 @@ void RegisterCoreCommands(CLI::App& app, Globals& g) {
         risk,
         "acceptable slip probability, e.g. 0.001 (coffee) or 0.05 (shirt)");
     cmd->callback([&g] {
-      Run([&] {
+      RunCommand([&] {
         FrictionClient c = MakeClient(g);
         const ModelSet m = c.FetchModel(id);
         if (!m.stochastic)
@@ -282,7 +256,7 @@ void RegisterCoreCommands(CLI::App& app, Globals& g) {
     static std::string id;
     cmd->add_option("ID", id, "material id")->required();
     cmd->callback([&g] {
-      Run([&] {
+      RunCommand([&] {
         FrictionClient c = MakeClient(g);
         std::cout << c.GetJson("/v1/materials/" + UrlEncode(id) +
                                "/models?fingertip=" + UrlEncode(g.fingertip))
@@ -301,7 +275,7 @@ void RegisterCoreCommands(CLI::App& app, Globals& g) {
     cmd->add_option("--description", description, "description");
     cmd->add_option("--tag", tags, "tag (repeatable)");
     cmd->callback([&g] {
-      Run([&] {
+      RunCommand([&] {
         FrictionClient c = MakeClient(g);
         json body = json::object();
         if (!name.empty()) body["name"] = name;
@@ -320,7 +294,7 @@ void RegisterCoreCommands(CLI::App& app, Globals& g) {
     static std::string id;
     cmd->add_option("ID", id, "material id")->required();
     cmd->callback([&g] {
-      Run([&] {
+      RunCommand([&] {
         FrictionClient c = MakeClient(g);
         std::cout << c.SendJson("DELETE", "/v1/materials/" + UrlEncode(id), "")
                          .dump(2)

@@ -13,25 +13,6 @@ namespace {
 
 using Params = std::vector<std::pair<std::string, std::string>>;
 
-FrictionClient MakeExportClient(const Globals& g) {
-  ClientOptions o;
-  o.base_url = g.server;
-  o.fingertip = g.fingertip;
-  return FrictionClient(o);
-}
-
-// Runs a command body; the daemon's error (naming the bad parameter) goes
-// to stderr with exit code 1.
-template <typename F>
-void RunExport(F&& body) {
-  try {
-    body();
-  } catch (const ClientError& e) {
-    std::cerr << "friction: " << e.what() << "\n";
-    throw CLI::RuntimeError(1);
-  }
-}
-
 // Adds name=value when the option was given (values go to the daemon
 // verbatim; it validates them and names the field on error).
 void AddIfSet(Params* p, const char* name, const std::string& value) {
@@ -60,15 +41,14 @@ void RegisterExportCommands(CLI::App& app, Globals& g) {
     cmd->add_option("--version", version, "model version (default: newest)");
     cmd->add_option("-o,--output", out_path, "write to FILE instead of stdout");
     cmd->callback([&g] {
-      RunExport([&] {
+      RunCommand([&] {
         Params p;
         AddIfSet(&p, "risk", risk);
         AddIfSet(&p, "fn_n", fn);
         AddIfSet(&p, "v_mm_s", v);
         AddIfSet(&p, "name", name);
         AddIfSet(&p, "version", version);
-        const std::string text =
-            MakeExportClient(g).ExportMaterial(id, format, p);
+        const std::string text = MakeClient(g).ExportMaterial(id, format, p);
         if (out_path.empty()) {
           std::cout << text;
           return;
@@ -98,16 +78,15 @@ void RegisterExportCommands(CLI::App& app, Globals& g) {
                     reference,
                     "fingertip the single-material models were measured with");
     cmd->callback([&g] {
-      RunExport([&] {
+      RunCommand([&] {
         Params p;
         AddIfSet(&p, "fn_n", fn);
         AddIfSet(&p, "v_mm_s", v);
         AddIfSet(&p, "rule", rule);
         AddIfSet(&p, "risk", risk);
         AddIfSet(&p, "reference", reference);
-        std::cout
-            << MakeExportClient(g).FetchPairFriction(tip, object, p).dump(2)
-            << "\n";
+        std::cout << MakeClient(g).FetchPairFriction(tip, object, p).dump(2)
+                  << "\n";
       });
     });
   }

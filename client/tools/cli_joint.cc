@@ -22,28 +22,6 @@ using nlohmann::json;
 
 namespace {
 
-FrictionClient MakeClient(const Globals& g) {
-  ClientOptions o;
-  o.base_url = g.server;
-  o.fingertip = g.fingertip;
-  return FrictionClient(o);
-}
-
-// Runs a command body, mapping errors to exit codes (1 daemon, 2 input).
-template <typename F>
-void Guard(F&& f) {
-  try {
-    f();
-  } catch (const ClientError& e) {
-    std::cerr << "friction: " << e.what() << "\n";
-    if (e.body().is_object()) std::cerr << e.body().dump(2) << "\n";
-    throw CLI::RuntimeError(1);
-  } catch (const std::invalid_argument& e) {
-    std::cerr << "friction: " << e.what() << "\n";
-    throw CLI::RuntimeError(2);
-  }
-}
-
 // "name=value" -> pair. @throws std::invalid_argument.
 std::pair<std::string, std::string> SplitParam(const std::string& s) {
   const auto eq = s.find('=');
@@ -70,7 +48,7 @@ void RegisterJointCommands(CLI::App& app, Globals& g) {
                     "joint property name=value (area_mm2, alt_um, salt_um, "
                     "summits, vogel_a_pa_s, ...), repeatable");
     cmd->callback([&g] {
-      Guard([&] {
+      RunCommand([&] {
         std::vector<std::pair<std::string, std::string>> p;
         for (const auto& s : params) p.push_back(SplitParam(s));
         const std::string csv = ReadFileOrFail(file);
@@ -91,7 +69,7 @@ void RegisterJointCommands(CLI::App& app, Globals& g) {
     cmd->add_option("--load-n", load, "contact load [N], > 0")->required();
     cmd->add_option("--temp-c", temp, "lubricant temperature [C] (40)");
     cmd->callback([&g] {
-      Guard([&] {
+      RunCommand([&] {
         FrictionClient client = MakeClient(g);
         std::cout
             << FetchJointFriction(client, id, joint, v, load, temp).body.dump(2)
@@ -111,7 +89,7 @@ void RegisterJointCommands(CLI::App& app, Globals& g) {
     cmd->add_option("--area-mm2", area, "apparent contact area [mm^2] (50)");
     cmd->add_option("--folds", folds, "cross-validation folds (5)");
     cmd->callback([] {
-      Guard([&] {
+      RunCommand([&] {
         JointConfig config;
         config.contact.area_mm2 = area;
         if (!(area > 0))
@@ -156,7 +134,7 @@ void RegisterJointCommands(CLI::App& app, Globals& g) {
     cmd->add_option("--n", n, "grid points per edge (20)");
     cmd->add_option("-o,--output", out, "HTML file to write (joint.html)");
     cmd->callback([&g] {
-      Guard([&] {
+      RunCommand([&] {
         FrictionClient client = MakeClient(g);
         const ModelSet m = client.FetchModel(id, 0, joint);
         const auto family = JointFamilyFromModel(m);
@@ -186,7 +164,7 @@ void RegisterJointCommands(CLI::App& app, Globals& g) {
     cmd->add_option("ID", id, "robot id")->required();
     cmd->add_option("FILE", file, "robot description JSON")->required();
     cmd->callback([&g] {
-      Guard([&] {
+      RunCommand([&] {
         json d;
         try {
           d = json::parse(ReadFileOrFail(file));
@@ -210,7 +188,7 @@ void RegisterJointCommands(CLI::App& app, Globals& g) {
     cmd->add_option("--z-mm", z, "target z [mm]")->required();
     cmd->add_option("--probability", c, "ellipsoid probability (0.95)");
     cmd->callback([&g] {
-      Guard([&] {
+      RunCommand([&] {
         FrictionClient client = MakeClient(g);
         std::cout << FetchRepeatability(client, id, x, y, z, c).body.dump(2)
                   << "\n";

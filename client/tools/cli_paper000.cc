@@ -11,30 +11,7 @@
 
 namespace frictiond::cli {
 
-namespace {
-
-FrictionClient MakeClient(const Globals& g) {
-  ClientOptions o;
-  o.base_url = g.server;
-  o.fingertip = g.fingertip;
-  return FrictionClient(o);
-}
-
-// Client errors exit 1 with the daemon's message; argument errors exit 2.
-template <typename F>
-void Run(F&& body) {
-  try {
-    body();
-  } catch (const ClientError& e) {
-    std::cerr << "friction: " << e.what() << "\n";
-    throw CLI::RuntimeError(1);
-  } catch (const std::invalid_argument& e) {
-    std::cerr << "friction: " << e.what() << "\n";
-    throw CLI::RuntimeError(2);
-  }
-}
-
-}  // namespace
+namespace {}  // namespace
 
 void RegisterPaper000Commands(CLI::App& app, Globals& g) {
   // target-force (eq. 3)
@@ -48,7 +25,7 @@ void RegisterPaper000Commands(CLI::App& app, Globals& g) {
     cmd->add_option("--fn-n", fn, "normal force [N]")->required();
     cmd->add_option("--v-mm-s", v, "desired sliding speed [mm/s]")->required();
     cmd->callback([&g] {
-      Run([&] {
+      RunCommand([&] {
         if (!(fn > 0))
           throw std::invalid_argument("--fn-n = " + std::to_string(fn) +
                                       " (must be > 0)");
@@ -71,7 +48,7 @@ void RegisterPaper000Commands(CLI::App& app, Globals& g) {
     cmd->add_option("--fn-n", fn, "measured normal force [N]")->required();
     cmd->add_option("--ft-n", ft, "measured tangential force [N]")->required();
     cmd->callback([&g] {
-      Run([&] {
+      RunCommand([&] {
         if (!(fn > 0))
           throw std::invalid_argument("--fn-n = " + std::to_string(fn) +
                                       " (must be > 0)");
@@ -95,7 +72,7 @@ void RegisterPaper000Commands(CLI::App& app, Globals& g) {
     cmd->add_option("--fn-n", fn, "normal force [N]")->required();
     cmd->add_option("--ratio", ratio, "force ratio Ft/Fn")->required();
     cmd->callback([&g] {
-      Run([&] {
+      RunCommand([&] {
         if (!(fn > 0))
           throw std::invalid_argument("--fn-n = " + std::to_string(fn) +
                                       " (must be > 0)");
@@ -121,7 +98,7 @@ void RegisterPaper000Commands(CLI::App& app, Globals& g) {
     cmd->add_option("--folds", folds, "stroke folds (2..50)")
         ->capture_default_str();
     cmd->callback([&g] {
-      Run([&] {
+      RunCommand([&] {
         std::cout << MakeClient(g).FetchForms(id, folds).dump(2) << "\n";
       });
     });
@@ -140,7 +117,7 @@ void RegisterPaper000Commands(CLI::App& app, Globals& g) {
     cmd->add_option("--fn-widths-n", fn_widths, "e.g. inf,2,1,0.5");
     cmd->add_option("--v-widths-mm-s", v_widths, "e.g. inf,40,20,10");
     cmd->callback([&g] {
-      Run([&] {
+      RunCommand([&] {
         std::vector<std::pair<std::string, std::string>> p;
         if (!fn_widths.empty()) p.emplace_back("fn_widths_n", fn_widths);
         if (!v_widths.empty()) p.emplace_back("v_widths_mm_s", v_widths);
@@ -161,7 +138,7 @@ void RegisterPaper000Commands(CLI::App& app, Globals& g) {
         ->capture_default_str();
     cmd->add_option("--seed", seed, "random seed")->capture_default_str();
     cmd->callback([&g] {
-      Run([&] {
+      RunCommand([&] {
         std::cout << MakeClient(g)
                          .FetchSpanVariability(
                              id,
