@@ -26,3 +26,11 @@ write_basic_package_version_file(${CMAKE_BINARY_DIR}/frictiondConfigVersion.cmak
   VERSION ${PROJECT_VERSION} COMPATIBILITY SameMajorVersion)
 install(FILES ${CMAKE_BINARY_DIR}/frictiondConfig.cmake
   ${CMAKE_BINARY_DIR}/frictiondConfigVersion.cmake DESTINATION ${_cfgdir})
+
+# The bundled measured datasets (with their LICENSE and PROVENANCE) and the
+# deployment files, so an installed daemon needs no source tree.
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/data/ DESTINATION ${CMAKE_INSTALL_DATADIR}/frictiond/data)
+install(FILES ${PROJECT_SOURCE_DIR}/README.md DESTINATION ${CMAKE_INSTALL_DOCDIR})
+install(FILES ${PROJECT_SOURCE_DIR}/deploy/systemd/frictiond.service
+  ${PROJECT_SOURCE_DIR}/deploy/frictiond.example.json
+  DESTINATION ${CMAKE_INSTALL_DATADIR}/frictiond/deploy)

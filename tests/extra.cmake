@@ -21,3 +21,7 @@ endforeach()
 if(TARGET frictiond_lcmtypes)
   add_subdirectory(lcm)
 endif()
+
+# Deployment files: install tree, example config, systemd unit.
+add_test(NAME deploy_files COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/deploy/check_deploy.sh ${CMAKE_BINARY_DIR})
+set_tests_properties(deploy_files PROPERTIES TIMEOUT 120 LABELS "install" SKIP_RETURN_CODE 77)
