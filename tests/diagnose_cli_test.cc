@@ -201,6 +201,17 @@ TEST_F(DiagnoseCliTest, LuGreReplayBesideCoulombAndLinear) {
   r = Friction("diagnose " + f.string() + " --json --lugre 0.9,0.6,5,0,-50,0");
   EXPECT_EQ(r.exit_code, 2) << r.out;
   EXPECT_NE(r.err.find("sigma0"), std::string::npos) << r.err;
+
+  // --lugre-from fetches a stored LuGre model: both options at once is a
+  // usage error, an unreachable daemon a runtime error naming it.
+  r = Friction("diagnose " + f.string() +
+               " --json --lugre 0.9,0.6,5,0.004,50,0.1 --lugre-from steel");
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.err.find("--lugre-from"), std::string::npos) << r.err;
+  r = Friction("--server http://127.0.0.1:1 diagnose " + f.string() +
+               " --json --lugre-from steel");
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.err.find("127.0.0.1:1"), std::string::npos) << r.err;
 }
 
 }  // namespace

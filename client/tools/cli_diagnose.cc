@@ -15,6 +15,7 @@
 #include "frictiond/estimators/diagnosis.h"
 #include "frictiond/estimators/regression.h"
 #include "frictiond/proto/diagnosis_json.h"
+#include "frictiond/proto/lugre_json.h"
 
 #include "cli.h"
 
@@ -36,6 +37,7 @@ struct DiagnoseArgs {
   bool no_strokes = false;
   bool no_tests = false;
   std::vector<double> lugre;  ///< mu_s, mu_c, v0, sigma2, sigma0, sigma1
+  std::string lugre_from;     ///< material whose stored LuGre is replayed
 };
 
 std::string Fmt(double x, int digits = 3) {
@@ -306,7 +308,7 @@ void WriteReport(const std::string& path,
   }
 }
 
-void RunDiagnose(const DiagnoseArgs& a) {
+void RunDiagnose(const DiagnoseArgs& a, const Globals& g) {
   std::vector<StrokeData> files;
   bool any_slip_column = false;
   for (const std::string& path : a.files) {
@@ -327,6 +329,25 @@ void RunDiagnose(const DiagnoseArgs& a) {
     }
     options.lugre = MakeLuGreTheta(
         a.lugre[0], a.lugre[1], a.lugre[2], a.lugre[3], a.lugre[4], a.lugre[5]);
+  }
+  if (!a.lugre_from.empty()) {
+    if (!a.lugre.empty()) {
+      std::cerr << "friction: diagnose: give --lugre or --lugre-from, not "
+                   "both\n";
+      throw CLI::RuntimeError(2);
+    }
+    // The LuGre model the daemon identified for that material (paper 001).
+    RunCommand([&] {
+      const ModelSet set = MakeClient(g).FetchModel(a.lugre_from);
+      if (!set.other.contains(kLuGreFamilyKey)) {
+        throw std::invalid_argument(
+            "--lugre-from " + a.lugre_from + ": model version " +
+            std::to_string(set.version) +
+            " has no LuGre family (upload a quasi-static and a dynamic "
+            "stroke first)");
+      }
+      options.lugre = LuGreFromJson(set.other.at(kLuGreFamilyKey)).theta;
+    });
   }
   std::string rule;
   const bool peak_given = a.slip_peak_mm_s > 0,
@@ -379,12 +400,12 @@ void RunDiagnose(const DiagnoseArgs& a) {
 
 }  // namespace
 
-void RegisterDiagnoseCommand(CLI::App& app, Globals& /*g*/) {
+void RegisterDiagnoseCommand(CLI::App& app, Globals& g) {
   auto args = std::make_shared<DiagnoseArgs>();
   CLI::App* cmd =
       app.add_subcommand("diagnose",
                          "Replay strokes through Coulomb and the linear model "
-                         "(and LuGre with --lugre), "
+                         "(and LuGre with --lugre or --lugre-from), "
                          "find significant causes of the remaining error "
                          "(columns, derived features, functional form), extend "
                          "the model and report held-out gains");
@@ -437,7 +458,11 @@ void RegisterDiagnoseCommand(CLI::App& app, Globals& /*g*/) {
                   "mu_s,mu_c,v0[mm/s],sigma2[s/mm],sigma0[1/mm],sigma1[s/mm] "
                   "(e.g. from friction show ID --json)")
       ->delimiter(',');
-  cmd->callback([args]() { RunDiagnose(*args); });
+  cmd->add_option("--lugre-from",
+                  args->lugre_from,
+                  "also replay the LuGre model the daemon identified for this "
+                  "material (fetched from --server)");
+  cmd->callback([args, &g]() { RunDiagnose(*args, g); });
 }
 
 }  // namespace frictiond::cli

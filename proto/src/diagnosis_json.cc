@@ -123,8 +123,9 @@ nlohmann::json DiagnosisToJson(const DiagnosisResult& r,
     j["replay_skipped"] = nlohmann::json::array();
     if (!lugre_replayed && r.status == DiagnosisStatus::kOk) {
       j["replay_skipped"].push_back(
-          "lugre: not replayed (no LuGre parameters given: friction diagnose "
-          "--lugre mu_s,mu_c,v0,sigma2,sigma0,sigma1)");
+          "lugre: not replayed (no LuGre model: the material has no "
+          "identified LuGre family, or friction diagnose got neither "
+          "--lugre mu_s,mu_c,v0,sigma2,sigma0,sigma1 nor --lugre-from ID)");
     }
   }
   if (json_options.tests) {

@@ -3,6 +3,7 @@
 // like any other (issue "model diagnosis", item 4).
 #include "frictiond/estimators/diagnosis.h"
 #include "frictiond/proto/diagnosis_json.h"
+#include "frictiond/proto/lugre_json.h"
 #include "frictiond/server/routes.h"
 
 namespace frictiond {
@@ -26,6 +27,12 @@ void RegisterDiagnosisRoutes(HttpServer& http, FrictionLibrary& lib) {
         DiagnosisOptions options;
         if (model->set.stochastic)
           options.labelling = model->set.stochastic->labelling;
+        // Replay the pair's identified LuGre model too (paper 001) when the
+        // stored version has one.
+        if (model->set.other.contains(kLuGreFamilyKey)) {
+          options.lugre =
+              LuGreFromJson(model->set.other.at(kLuGreFamilyKey)).theta;
+        }
         if (auto seed = req.Query("seed")) {
           const double s = ParseNumberParam("seed", *seed);
           if (!(s >= 0 && s < 1e15))

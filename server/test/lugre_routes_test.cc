@@ -7,6 +7,7 @@
 #include <fstream>
 #include <functional>
 #include <iostream>
+#include <map>
 #include <random>
 #include <sstream>
 #include <string>
@@ -20,6 +21,7 @@
 #include "frictiond/server/http_server.h"
 #include "frictiond/server/library.h"
 #include "frictiond/server/routes.h"
+#include "frictiond/testing/lugre_strokes.h"
 #include "frictiond/testing/stroke_simulator.h"
 
 namespace frictiond {
@@ -107,6 +109,7 @@ class LuGreRoutesTest : public ::testing::Test {
   LuGreRoutesTest() : lib_(OpenStore(":memory:")) {
     RegisterCoreRoutes(http_, lib_);
     RegisterLuGreFeature(http_, lib_);
+    RegisterDiagnosisRoutes(http_, lib_);
   }
   HttpResponse Get(const std::string& path,
                    std::multimap<std::string, std::string> query = {}) {
@@ -193,6 +196,32 @@ TEST_F(LuGreRoutesTest, TwoStrokeUploadStoresLuGreNearTruth) {
   ExpectNearTruth(model["lugre"]);
   EXPECT_EQ(model["lugre"]["strokes_used"]["quasi_static"], 1);
   EXPECT_EQ(model["lugre"]["strokes_used"]["dynamic"], 1);
+}
+
+TEST_F(LuGreRoutesTest, DiagnoseReplaysTheStoredLuGreModel) {
+  Upload("steel", TwoStrokeCsv());  // identifies LuGre
+  // Eight more strokes of the same truth, so diagnosis has strokes to
+  // cross-validate over (the LuGre family of the first upload carries over).
+  Upload("steel",
+         FormatStrokeCsv(
+             testing::SimulateLuGreStrokes(testing::LuGreStrokeSpec{}, 4)));
+  ASSERT_TRUE(Model("steel").contains("lugre"));
+  HttpRequest r;
+  r.method = "POST";
+  r.path = "/v1/materials/steel/diagnose";
+  const HttpResponse out = http_.Dispatch(r);
+  ASSERT_EQ(out.status, 200) << out.body;
+  const json d = json::parse(out.body)["diagnosis"];
+  std::map<std::string, double> mae;
+  for (const json& m : d["replay"])
+    mae[m["model"].get<std::string>()] = m["overall"]["mu_mae"].get<double>();
+  ASSERT_EQ(mae.count("lugre"), 1u) << d["replay"].dump();
+  ASSERT_EQ(mae.count("coulomb"), 1u);
+  // The data are LuGre with noise kNoise: the replayed LuGre model must be
+  // near the noise floor and far better than Coulomb's constant.
+  EXPECT_LT(mae["lugre"], 1.5 * kNoise);
+  EXPECT_LT(mae["lugre"], 0.5 * mae["coulomb"]);
+  EXPECT_TRUE(d["replay_skipped"].empty()) << d["replay_skipped"].dump();
 }
 
 TEST_F(LuGreRoutesTest, StrokesFromSeparateUploadsAreCombined) {
