@@ -1,5 +1,6 @@
 #include "frictiond/estimators/regression.h"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -263,31 +264,67 @@ OlsResult FitOls(const Eigen::Ref<const Eigen::MatrixXd>& X,
             " terms (need at least terms + 2)";
     return r;
   }
-  if (!X.allFinite() || !y.allFinite()) {
+  // One pass over [X y] in row blocks that stay in cache (memory-bound at
+  // 1e6 rows, so every extra pass costs as much as the arithmetic): block
+  // sums and Gram matrix of the data shifted by the first block's mean. The
+  // shifted-data algorithm keeps the cancellation of the final centring
+  // small, and the block also tells which column is all ones.
+  constexpr int kBlock = 2048;
+  const int first = std::min(n, kBlock);
+  Eigen::RowVectorXd shift(p + 1);
+  shift.head(p) = X.topRows(first).colwise().mean();
+  shift(p) = y.head(first).mean();
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(p + 1);
+  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(p + 1, p + 1);
+  std::vector<bool> all_ones(p, true);
+  // Column u of [X y] rows i0..i0+len-1 (no copy; columns are contiguous).
+  const auto column = [&](int u, int i0, int len) {
+    const double* data = u < p ? X.col(u).data() : y.data();
+    return Eigen::Map<const Eigen::ArrayXd>(data + i0, len);
+  };
+  for (int i0 = 0; i0 < n; i0 += kBlock) {
+    const int len = std::min(kBlock, n - i0);
+    for (int k = 0; k < p; ++k) {
+      if (all_ones[k]) all_ones[k] = (column(k, i0, len) == 1.0).all();
+    }
+    // The block is read from cache by the (p+1)(p+2)/2 products, not from
+    // memory.
+    for (int w = 0; w <= p; ++w) {
+      const auto cw = column(w, i0, len) - shift(w);
+      sum(w) += cw.sum();
+      for (int u = w; u <= p; ++u)
+        S(u, w) += ((column(u, i0, len) - shift(u)) * cw).sum();
+    }
+  }
+  S = S.selfadjointView<Eigen::Lower>();
+  if (!S.allFinite() || !sum.allFinite()) {
     r.status = FitStatus::kFailed;
     r.why = "non-finite value in the design matrix or the response";
     return r;
   }
-  // Detect the intercept column and centre/scale the others.
   int intercept = -1;
   for (int k = 0; k < p; ++k) {
-    if ((X.col(k).array() == 1.0).all()) {
+    if (all_ones[k]) {
       intercept = k;
       break;
     }
   }
-  const Eigen::RowVectorXd mean = X.colwise().mean();
+  // Second moments about c: centred (c = mean) with an intercept, raw
+  // (c = 0) without. With d = mean - shift:
+  //   sum (u - mean_u)(w - mean_w) = S_uw - n d_u d_w,
+  //   sum u w = S_uw + a_u s_w + a_w s_u + n a_u a_w   (a = shift, s = sum).
+  const Eigen::VectorXd d = sum / n;
+  const Eigen::VectorXd a = shift.transpose();
+  const Eigen::MatrixXd M =
+      intercept >= 0
+          ? Eigen::MatrixXd(S - n * d * d.transpose())
+          : Eigen::MatrixXd(S + a * sum.transpose() + sum * a.transpose() +
+                            n * a * a.transpose());
+  const Eigen::RowVectorXd mean = (a + d).head(p).transpose();
   Eigen::VectorXd scale(p);
-  for (int k = 0; k < p; ++k) {
-    if (k == intercept) {
-      scale(k) = 1.0;
-      continue;
-    }
-    const double c = intercept >= 0 ? mean(k) : 0.0;
-    const double ss = (X.col(k).array() - c).square().sum() / n;
-    scale(k) = std::sqrt(ss);
-  }
-  // Gram matrix of the standardised non-intercept columns (one pass over X).
+  for (int k = 0; k < p; ++k)
+    scale(k) = k == intercept ? 1.0 : std::sqrt(std::max(0.0, M(k, k)) / n);
+  // Gram matrix of the standardised non-intercept columns.
   std::vector<int> cols;
   for (int k = 0; k < p; ++k) {
     if (k == intercept) continue;
@@ -295,22 +332,14 @@ OlsResult FitOls(const Eigen::Ref<const Eigen::MatrixXd>& X,
     if (scale(k) > 0 && rel > 1e-12) cols.push_back(k);
   }
   const int q = static_cast<int>(cols.size());
-  Eigen::MatrixXd Z(n, q);
-  for (int j = 0; j < q; ++j) {
-    const int k = cols[j];
-    const double c = intercept >= 0 ? mean(k) : 0.0;
-    Z.col(j) = (X.col(k).array() - c) / scale(k);
+  Eigen::MatrixXd G(q, q);
+  Eigen::VectorXd g(q);
+  for (int i = 0; i < q; ++i) {
+    g(i) = M(cols[i], p) / scale(cols[i]);
+    for (int j = 0; j < q; ++j)
+      G(i, j) = M(cols[i], cols[j]) / (scale(cols[i]) * scale(cols[j]));
   }
-  const double ybar = intercept >= 0 ? y.mean() : 0.0;
-  const Eigen::VectorXd yc = y.array() - ybar;
-  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(q, q);
-  // With no usable column (intercept-only fit) Z has no storage, and Eigen's
-  // rank update would bind a reference through its null data pointer.
-  if (q > 0) {
-    G.selfadjointView<Eigen::Lower>().rankUpdate(Z.transpose());
-    G = G.selfadjointView<Eigen::Lower>();
-  }
-  Eigen::VectorXd g = Z.transpose() * yc;
+  const double ybar = intercept >= 0 ? a(p) + d(p) : 0.0;
   // Rank check: pivoted QR of the Gram matrix (well scaled: diag = n).
   std::vector<int> keep;
   if (q > 0) {
@@ -352,9 +381,9 @@ OlsResult FitOls(const Eigen::Ref<const Eigen::MatrixXd>& X,
     r.identified[intercept] = true;
   }
   const int p_eff = m + (intercept >= 0 ? 1 : 0);
-  r.residuals = y - X * r.beta;
+  r.residuals.noalias() = y - X * r.beta;
   const double rss = r.residuals.squaredNorm();
-  const double tss = yc.squaredNorm();
+  const double tss = std::max(0.0, M(p, p));
   r.dof = n - p_eff;
   const double s2 = rss / std::max(1, r.dof);
   r.sigma_eps = std::sqrt(s2);
