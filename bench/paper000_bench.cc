@@ -3,6 +3,10 @@
 //   ols_1e6            eq. (1) by FitOls on 1e6 samples (R^2, F, p, SE,
 //                      covariance) vs numpy.linalg.lstsq + the same
 //                      statistics; median of 5.
+//   identify_material  full identification of the largest bundled measured
+//                      dataset (labelling, eq. 1 + Fn-only model, sigmoid and
+//                      conditional likelihood, coverage hull) vs the same
+//                      steps in NumPy/SciPy; median of 5.
 //   slip_likelihood_ns one CalcSlipLikelihood(model, Fn, Ft) call as a robot
 //                      would make it in its loop, vs scipy.special.expit
 //                      vectorised over 1e6 points (per point).
@@ -11,8 +15,10 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <iostream>
 #include <random>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -20,8 +26,12 @@
 #include <Eigen/Dense>
 #include <nlohmann/json.hpp>
 
+#include "frictiond/estimators/preprocessing.h"
 #include "frictiond/estimators/regression.h"
+#include "frictiond/estimators/slip_likelihood.h"
+#include "frictiond/estimators/span_coverage.h"
 #include "frictiond/estimators/stochastic_model.h"
+#include "frictiond/estimators/stroke_csv.h"
 #include "frictiond/testing/stroke_simulator.h"
 
 #include "bench_json.h"
@@ -88,6 +98,112 @@ void BenchOls(const std::string& python, const std::string& script) {
     b.goal = goal;
     b.note = "median of 5; b2 " + std::to_string(r.beta(2)) + " (numpy " +
              std::to_string(ref.at("beta").at(2).get<double>()) + ")";
+    PrintBenchLine(b);
+  } catch (const std::exception& e) {
+    std::printf("%s\n", FormatBenchError(name, e.what(), goal).c_str());
+  }
+}
+
+// The bundled dataset with the most samples, with its labelling.
+struct BundledSet {
+  std::string csv_path;
+  SlipLabelOptions labelling;
+  std::size_t samples = 0;
+};
+
+BundledSet LargestBundledSet(const std::string& data_dir) {
+  std::ifstream in(data_dir + "/datasets.json");
+  if (!in)
+    throw std::runtime_error("cannot read " + data_dir + "/datasets.json");
+  const nlohmann::json index = nlohmann::json::parse(in);
+  BundledSet best;
+  for (const nlohmann::json& d : index.at("datasets")) {
+    const std::string path = data_dir + "/" + d.at("csv").get<std::string>();
+    std::ifstream f(path);
+    std::size_t lines = 0;
+    for (std::string line; std::getline(f, line);) ++lines;
+    if (lines <= best.samples) continue;
+    best.csv_path = path;
+    best.samples = lines;
+    const nlohmann::json& l = d.at("labelling");
+    best.labelling.peak_mm_s = l.at("slip_peak_mm_s");
+    best.labelling.floor_mm_s = l.at("slip_floor_mm_s");
+    best.labelling.median_window_s = l.at("median_window_s");
+  }
+  if (best.csv_path.empty()) throw std::runtime_error("no bundled dataset");
+  return best;
+}
+
+void BenchIdentify(const std::string& python,
+                   const std::string& script,
+                   const std::string& data_dir) {
+  const std::string name = "identify_material";
+  const std::string goal = ">= 20x faster than numpy/scipy";
+  try {
+    const BundledSet set = LargestBundledSet(data_dir);
+    std::ifstream f(set.csv_path);
+    std::ostringstream text;
+    text << f.rdbuf();
+    const StrokeData raw = ParseStrokeCsv(text.str());  // not timed
+    const SpanRect reference{0.5, 4.5, 15.0, 80.0};     // default stroke plan
+    std::vector<double> ms;
+    StochasticFit fit;
+    ConditionalSlipLikelihood conditional;
+    SpanCoverage coverage;
+    for (int k = 0; k < 5; ++k) {
+      const auto t0 = Clock::now();
+      StrokeData d = raw;
+      EnsureLabels(&d, set.labelling);
+      StochasticFitOptions options;
+      options.labelling = set.labelling;
+      fit = FitStochasticModel(d, options);
+      std::vector<double> ratio(d.size());
+      for (std::size_t i = 0; i < d.size(); ++i) ratio[i] = d.mu(i);
+      conditional = FitConditionalSlipLikelihood(d.fn_n, ratio, d.slip);
+      std::vector<double> fn, v;
+      for (std::size_t i = 0; i < d.size(); ++i) {
+        if (d.slip[i]) {
+          fn.push_back(d.fn_n[i]);
+          v.push_back(d.v_mm_s[i]);
+        }
+      }
+      coverage = CalcSpanCoverage(fn, v, reference);
+      ms.push_back(1e3 * Seconds(t0, Clock::now()));
+    }
+    if (fit.status != FitStatus::kOk && fit.status != FitStatus::kPartial)
+      throw std::runtime_error("fit failed: " + fit.why);
+    std::sort(ms.begin(), ms.end());
+    char args[512];
+    std::snprintf(args,
+                  sizeof args,
+                  " identify --csv '%s' --peak %g --floor %g --window-s %g "
+                  "--repeats 5",
+                  set.csv_path.c_str(),
+                  set.labelling.peak_mm_s,
+                  set.labelling.floor_mm_s,
+                  set.labelling.median_window_s);
+    const nlohmann::json ref =
+        nlohmann::json::parse(RunCommand(python + " " + script + args));
+    BenchResult b;
+    b.bench = name;
+    b.value = ms[2];
+    b.unit = "ms";
+    b.baseline = ref.at("ms").get<double>();
+    b.baseline_name =
+        "the same steps in numpy/scipy (median_filter, lstsq, IRLS, "
+        "ConvexHull), same data, same run";
+    b.lower_is_better = true;
+    b.goal = goal;
+    b.note = std::to_string(set.samples - 1) + " samples; slipping " +
+             std::to_string(fit.model.samples_slip) + " (numpy " +
+             std::to_string(ref.at("slip").get<int>()) + "), strokes " +
+             std::to_string(fit.model.strokes) + " (numpy " +
+             std::to_string(ref.at("strokes").get<int>()) + "), c2 " +
+             std::to_string(fit.model.likelihood.c2) + " (numpy " +
+             std::to_string(ref.at("c2").get<double>()) + "), windows " +
+             std::to_string(conditional.knot_fn_n.size()) + " (numpy " +
+             std::to_string(ref.at("windows").get<int>()) + "), span " +
+             std::to_string(coverage.span_pct) + "%; median of 5";
     PrintBenchLine(b);
   } catch (const std::exception& e) {
     std::printf("%s\n", FormatBenchError(name, e.what(), goal).c_str());
@@ -163,6 +279,10 @@ int main(int argc, char** argv) {
       std::string(env_root ? env_root : FRICTIOND_SOURCE_DIR) +
       "/bench/ref/paper000_ref.py";
   frictiond::bench::BenchOls(python, script);
+  frictiond::bench::BenchIdentify(
+      python,
+      script,
+      std::string(env_root ? env_root : FRICTIOND_SOURCE_DIR) + "/data");
   frictiond::bench::BenchLikelihood(python, script);
   return 0;
 }

@@ -26,6 +26,8 @@ import time
 
 import numpy as np
 from scipy import stats
+from scipy.ndimage import median_filter
+from scipy.spatial import ConvexHull
 from scipy.special import expit
 
 
@@ -78,6 +80,89 @@ def likelihood(n):
     print(json.dumps({"ns_vector": 1e9 * best / n, "ns_scalar": 1e9 * scalar / m}))
 
 
+def _irls(ratio, slip, ridge=1e-6, iters=50):
+    """Logistic MLE of L = 1/(1+exp(-c1 (r - c2))) by Newton/IRLS."""
+    A = np.column_stack([np.ones_like(ratio), ratio])
+    b = np.zeros(2)
+    for _ in range(iters):
+        p = expit(A @ b)
+        w = p * (1.0 - p)
+        H = A.T @ (A * w[:, None]) + ridge * np.eye(2)
+        step = np.linalg.solve(H, A.T @ (slip - p))
+        b += step
+        if np.max(np.abs(step)) < 1e-10:
+            break
+    return b[1], -b[0] / b[1] if b[1] != 0 else math.nan
+
+
+def _ols_stats(X, y):
+    beta, _, rank, _ = np.linalg.lstsq(X, y, rcond=None)
+    resid = y - X @ beta
+    dof = len(y) - rank
+    s2 = float(resid @ resid) / dof
+    cov = s2 * np.linalg.pinv(X.T @ X)
+    return beta, resid, np.sqrt(np.clip(np.diag(cov), 0, None))
+
+
+def identify(csv, peak, floor, window_s, repeats):
+    """Full identification of one material as frictiond does it: median
+    filter + episode rule (II-C), stroke segmentation, eq. (1) and the
+    Fn-only model with SEs and eps quantiles, the sigmoid likelihood and the
+    conditional one of eq. (2) (0.2 N steps, 0.6 N windows), and the convex
+    hull of the slipping (Fn, v) samples against the plan's reference span."""
+    d = np.genfromtxt(csv, delimiter=",", names=True)
+    t, fn, ft, v = d["t_s"], d["fn_n"], d["ft_n"], d["v_mm_s"]
+    levels = np.linspace(0.005, 0.995, 21)
+    times = []
+    out = {}
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        dt = np.median(np.diff(t)[np.diff(t) > 0])
+        k = max(1, int(round(window_s / dt)))
+        k += 1 - k % 2
+        vf = median_filter(np.abs(v), size=k, mode="nearest")
+        above = vf > floor
+        edges = np.diff(np.concatenate(([0], above.astype(np.int8), [0])))
+        starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+        slip = np.zeros(len(v), dtype=np.int8)
+        if len(starts):
+            peaks = np.maximum.reduceat(vf, starts)
+            for s, e, pk in zip(starts, ends, peaks):
+                if pk > peak:
+                    slip[s:e] = 1
+        stroke = np.cumsum(np.diff(slip, prepend=0) == -1)
+        mask = slip == 1
+        mu = ft / fn
+        X = np.column_stack([np.ones(mask.sum()), v[mask], fn[mask]])
+        beta, resid, se = _ols_stats(X, mu[mask])
+        q = np.quantile(resid, levels)
+        beta_fn, _, _ = _ols_stats(X[:, [0, 2]], mu[mask])
+        ok = np.isfinite(mu)
+        c1, c2 = _irls(mu[ok], slip[ok].astype(float))
+        windows = []
+        lo, hi = np.min(fn[ok]), np.max(fn[ok])
+        for c in np.arange(np.floor(lo / 0.2) * 0.2, hi + 1e-9, 0.2):
+            w = ok & (np.abs(fn - c) <= 0.3)
+            n_slip = int(slip[w].sum())
+            if w.sum() >= 40 and n_slip >= 5 and w.sum() - n_slip >= 5:
+                windows.append((c,) + _irls(mu[w], slip[w].astype(float)))
+        pts = np.column_stack([np.clip(fn[mask], 0.5, 4.5),
+                               np.clip(v[mask], 15.0, 80.0)])
+        try:
+            area = ConvexHull(pts).volume if len(pts) >= 3 else 0.0
+        except Exception:  # degenerate (collinear) hull
+            area = 0.0
+        span_pct = 100.0 * area / ((4.5 - 0.5) * (80.0 - 15.0))
+        times.append(time.perf_counter() - t0)
+        out = {"beta": [float(b) for b in beta], "strokes": int(stroke[-1]) + 1,
+               "slip": int(mask.sum()), "c1": float(c1), "c2": float(c2),
+               "windows": len(windows), "span_pct": span_pct,
+               "eps_q50": float(q[10]), "se": [float(x) for x in se],
+               "beta_fn": [float(b) for b in beta_fn]}
+    out["ms"] = 1e3 * float(np.median(times))
+    print(json.dumps(out))
+
+
 def main():
     ap = argparse.ArgumentParser()
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -86,9 +171,17 @@ def main():
     a.add_argument("--repeats", type=int, default=5)
     b = sub.add_parser("likelihood")
     b.add_argument("--n", type=int, required=True)
+    c = sub.add_parser("identify")
+    c.add_argument("--csv", required=True)
+    c.add_argument("--peak", type=float, required=True)
+    c.add_argument("--floor", type=float, required=True)
+    c.add_argument("--window-s", type=float, required=True)
+    c.add_argument("--repeats", type=int, default=5)
     args = ap.parse_args()
     if args.cmd == "ols":
         ols(args.n, args.repeats)
+    elif args.cmd == "identify":
+        identify(args.csv, args.peak, args.floor, args.window_s, args.repeats)
     else:
         likelihood(args.n)
 
