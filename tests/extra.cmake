@@ -21,3 +21,10 @@ endforeach()
 if(TARGET frictiond_lcmtypes)
   add_subdirectory(lcm)
 endif()
+
+# The operator console in a real browser: headless Debian chromium driven by
+# puppeteer-core (tests/browser, docs/console.md). Screenshots go to
+# build/test-artifacts/console-*.png.
+add_test(NAME console_browser_test
+  COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/browser/run.sh ${CMAKE_BINARY_DIR})
+set_tests_properties(console_browser_test PROPERTIES LABELS "browser" TIMEOUT 120)
