@@ -29,7 +29,8 @@ async function getJson(path) {
 async function write(method, path, body, type) {
   const headers = Object.assign({ Accept: 'application/json' }, authHeaders());
   if (type) headers['Content-Type'] = type;
-  const res = await fetch(path, { method, headers, body });
+  // An explicit empty body: a POST without one has no Content-Length.
+  const res = await fetch(path, { method, headers, body: body === undefined ? '' : body });
   return { status: res.status, ok: res.ok, text: await res.text() };
 }
 
@@ -345,7 +346,8 @@ async function drawModel(base, vq, model, samples) {
   ];
   plot($('plot-mu-fn'), { x: 'Fn [N]', y: 'mu', series: [{ kind: 'points', x: samples.fn_n, y: samples.mu, label: 'slipping samples' }, ...line(fnGrid, pf, 'model at v = ' + fmt(vMean) + ' mm/s')] });
   plot($('plot-mu-v'), { x: 'v [mm/s]', y: 'mu', series: [{ kind: 'points', x: samples.v_mm_s, y: samples.mu, label: 'slipping samples' }, ...line(vGrid, pv, 'model at Fn = ' + fmt(fnMean) + ' N')] });
-  const shown = samples.returned + ' of ' + samples.slip_samples + ' samples';
+  const others = Object.keys(inputs).filter((k) => k !== 'fn_n' && k !== 'v_mm_s');
+  const shown = samples.returned + ' of ' + samples.slip_samples + ' samples' + (others.length ? '; model at mean ' + others.join(', ') : '');
   $('cap-mu-fn').textContent = shown;
   $('cap-mu-v').textContent = shown;
   drawEps(st);
