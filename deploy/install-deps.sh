@@ -29,7 +29,8 @@ npm_packages() {
     echo "install-deps: npm packages of tests/browser present"
   else
     echo "install-deps: npm ci in tests/browser"
-    "$here/npm-ci.sh"
+    # Not fatal: only the browser test needs it, and it says so when missing.
+    "$here/npm-ci.sh" || echo "install-deps: npm ci in tests/browser failed; console_browser_test will fail" >&2
   fi
 }
 
