@@ -17,14 +17,32 @@ packages=(
   gimp-data            # real texture images for the recognition tests
   iproute2 util-linux  # private network namespace for LCM multicast tests
   curl
+  chromium nodejs      # the console's browser test (tests/browser, docs/console.md)
 )
+
+# The browser test's npm packages (puppeteer-core, pinned by
+# tests/browser/package-lock.json): npm ci when node_modules is stale.
+npm_packages() {
+  local here
+  here="$(cd "$(dirname "$0")/.." && pwd)/tests/browser"
+  if "$here/npm-ci.sh" --check; then
+    echo "install-deps: npm packages of tests/browser present"
+  else
+    echo "install-deps: npm ci in tests/browser"
+    # Not fatal: only the browser test needs it, and it says so when missing.
+    "$here/npm-ci.sh" || echo "install-deps: npm ci in tests/browser failed; console_browser_test will fail" >&2
+  fi
+}
 
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
+# npm: Debian's package, unless the installed nodejs already brings it.
+command -v npm >/dev/null || missing+=(npm)
 if [ ${#missing[@]} -eq 0 ]; then
   echo "install-deps: all ${#packages[@]} packages present"
+  npm_packages
   exit 0
 fi
 if [ "$(id -u)" -ne 0 ]; then
@@ -35,4 +53,5 @@ echo "install-deps: installing ${missing[*]}"
 export DEBIAN_FRONTEND=noninteractive
 apt-get update -qq
 apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+npm_packages
 echo "install-deps: done"

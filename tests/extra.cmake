@@ -25,3 +25,10 @@ endif()
 # Deployment files: install tree, example config, systemd unit.
 add_test(NAME deploy_files COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/deploy/check_deploy.sh ${CMAKE_BINARY_DIR})
 set_tests_properties(deploy_files PROPERTIES TIMEOUT 120 LABELS "install" SKIP_RETURN_CODE 77)
+
+# The operator console in a real browser: headless Debian chromium driven by
+# puppeteer-core (tests/browser, docs/console.md). Screenshots go to
+# build/test-artifacts/console-*.png.
+add_test(NAME console_browser_test
+  COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/browser/run.sh ${CMAKE_BINARY_DIR})
+set_tests_properties(console_browser_test PROPERTIES LABELS "browser" TIMEOUT 120)

@@ -13,11 +13,12 @@ bool SpanRect::IsValid() const {
          fn_max_n > fn_min_n && v_max_mm_s > v_min_mm_s;
 }
 
-double CalcConvexHullArea(std::vector<std::pair<double, double>> p) {
+std::vector<std::pair<double, double>> CalcConvexHull(
+    std::vector<std::pair<double, double>> p) {
   std::sort(p.begin(), p.end());
   p.erase(std::unique(p.begin(), p.end()), p.end());
   const std::size_t n = p.size();
-  if (n < 3) return 0.0;
+  if (n < 3) return p;
   using Point = std::pair<double, double>;
   auto cross = [](const Point& o, const Point& a, const Point& b) {
     return (a.first - o.first) * (b.second - o.second) -
@@ -35,6 +36,13 @@ double CalcConvexHullArea(std::vector<std::pair<double, double>> p) {
     hull[k++] = p[i];
   }
   hull.resize(k - 1);
+  return hull;
+}
+
+double CalcConvexHullArea(std::vector<std::pair<double, double>> p) {
+  using Point = std::pair<double, double>;
+  const std::vector<Point> hull = CalcConvexHull(std::move(p));
+  if (hull.size() < 3) return 0.0;
   double twice_area = 0.0;
   for (std::size_t i = 0; i < hull.size(); ++i) {
     const Point& a = hull[i];

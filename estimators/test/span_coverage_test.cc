@@ -1,6 +1,7 @@
 #include "frictiond/estimators/span_coverage.h"
 
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -19,6 +20,18 @@ TEST(SpanCoverage, HullAreaOfKnownShapes) {
   EXPECT_DOUBLE_EQ(CalcConvexHullArea({{0, 0}, {4, 0}, {0, 3}, {1, 1}}), 6.0);
   // Collinear points have no area.
   EXPECT_DOUBLE_EQ(CalcConvexHullArea({{0, 0}, {1, 1}, {2, 2}}), 0.0);
+}
+
+TEST(SpanCoverage, HullPolygonDropsInteriorAndCollinearPoints) {
+  using P = std::pair<double, double>;
+  const std::vector<P> hull = CalcConvexHull(
+      {{1, 1}, {0, 0}, {2, 0}, {1, 0}, {2, 2}, {0, 2}, {1, 1.5}, {0, 0}});
+  // Counter-clockwise from the smallest point; (1,0) is collinear, (1,1)
+  // and (1,1.5) are inside, the duplicate (0,0) appears once.
+  const std::vector<P> expected = {{0, 0}, {2, 0}, {2, 2}, {0, 2}};
+  EXPECT_EQ(hull, expected);
+  EXPECT_EQ(CalcConvexHull({{0, 0}, {1, 1}, {2, 2}}).size(), 2u);
+  EXPECT_TRUE(CalcConvexHull({}).empty());
 }
 
 TEST(SpanCoverage, FullSweepCoversEverything) {

@@ -127,6 +127,7 @@ int Daemon::Start() {
   RegisterJointRoutes(*http_, *library_);
   RecognizeImageFn recognize = RegisterRecognitionRoutes(*http_, *library_);
   RegisterExportRoutes(*http_, *library_);
+  RegisterConsoleRoutes(*http_, *library_);
   const int port = http_->Bind(config_.bind, config_.port);
   if (config_.lcm_url != "none") {
     LcmEndpointOptions lo_lcm;

@@ -57,6 +57,12 @@ SpanCoverage CalcSpanCoverage(const std::vector<double>& fn_n,
                               const std::vector<double>& v_mm_s,
                               const SpanRect& reference);
 
+/// Convex hull of the points (Andrew's monotone chain), counter-clockwise
+/// from the point with the smallest first coordinate, without collinear
+/// points; fewer than three points when they are all collinear.
+std::vector<std::pair<double, double>> CalcConvexHull(
+    std::vector<std::pair<double, double>> points);
+
 /// Area of the convex hull of the points (monotone chain); 0 for fewer than
 /// three non-collinear points.
 double CalcConvexHullArea(std::vector<std::pair<double, double>> points);

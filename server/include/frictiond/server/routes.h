@@ -52,6 +52,11 @@ RecognizeImageFn RegisterRecognitionRoutes(HttpServer& http,
 /// docs/export.md.
 void RegisterExportRoutes(HttpServer& http, FrictionLibrary& library);
 
+/// Operator console: GET / and /console/{file} (static files compiled into
+/// the daemon) and GET /v1/materials/{id}/samples (decimated slipping
+/// samples, their Fn-v hull and span coverage); see docs/console.md.
+void RegisterConsoleRoutes(HttpServer& http, FrictionLibrary& library);
+
 /// Material JSON as served.
 nlohmann::json MaterialToJson(const Material& m);
 
