@@ -4,26 +4,13 @@
 #include <iostream>
 #include <iterator>
 
+#include "frictiond/crypto/hmac.h"
 #include "frictiond/server/lcm_auth.h"
 #include "frictiond/server/routes.h"
 
 namespace frictiond {
 
 using nlohmann::json;
-
-namespace {
-
-std::string ToHexKey(const std::string& bytes) {
-  static const char* kHex = "0123456789abcdef";
-  std::string out;
-  for (unsigned char c : bytes) {
-    out += kHex[c >> 4];
-    out += kHex[c & 15];
-  }
-  return out;
-}
-
-}  // namespace
 
 std::map<std::string, std::string> DaemonConfig::LoadLcmKeys() const {
   std::map<std::string, std::string> keys =
@@ -113,7 +100,7 @@ void DaemonConfig::LoadFile(const std::string& path) {
   if (j.contains("lcm_keys")) {
     // Checked here (hex, length); kept as hex like the file.
     const auto raw = ParseLcmKeys(j["lcm_keys"].dump(), path + ": lcm_keys");
-    for (const auto& [robot, key] : raw) lcm_keys[robot] = ToHexKey(key);
+    for (const auto& [robot, key] : raw) lcm_keys[robot] = ToHex(key);
   }
   if (j.contains("plan")) {
     const json& p = j["plan"];
