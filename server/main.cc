@@ -34,6 +34,19 @@ int main(int argc, char** argv) {
   app.add_option(
       "--max-body-mb", max_body_mb, "request body limit in MiB [16]");
   app.add_option("--threads", threads, "HTTP worker threads [8]");
+  std::string lcm_keys;
+  bool lcm_allow_unsigned = false;
+  double lcm_max_skew_s = -1;
+  app.add_option("--lcm-keys",
+                 lcm_keys,
+                 "JSON file {\"robot-id\": \"hex key\"} of the keys of "
+                 "signed LCM writes");
+  app.add_flag("--lcm-allow-unsigned",
+               lcm_allow_unsigned,
+               "accept unsigned stroke_chunk_v1 on LCM (off: dropped)");
+  app.add_option("--lcm-max-skew-s",
+                 lcm_max_skew_s,
+                 "timestamp window of signed LCM writes in s [30]");
   CLI11_PARSE(app, argc, argv);
 
   // Block the stop signals in every thread; one thread waits for them.
@@ -53,6 +66,9 @@ int main(int argc, char** argv) {
     if (port >= 0) config.port = port;
     if (max_body_mb >= 0) config.max_body_mb = max_body_mb;
     if (threads >= 0) config.threads = threads;
+    if (!lcm_keys.empty()) config.lcm_keys_file = lcm_keys;
+    if (lcm_allow_unsigned) config.lcm_allow_unsigned = true;
+    if (lcm_max_skew_s >= 0) config.lcm_max_skew_s = lcm_max_skew_s;
     frictiond::Daemon daemon(config);
     const int bound = daemon.Start();
     std::thread waiter([&daemon, stop_signals] {

@@ -113,6 +113,16 @@ TEST(DaemonConfigTest, BadConfigIsRejectedNamingTheField) {
        R"({"plan": {"fn_max_n": "high"}})",
        "plan.fn_max_n: expected a number"},
       {"broken_json", R"({"port": 8080,)", "invalid JSON"},
+      {"lcm_key_short",
+       R"({"lcm_keys": {"arm-1": "00ff"}})",
+       "lcm_keys: arm-1: key of 2 bytes"},
+      {"lcm_key_not_hex",
+       R"({"lcm_keys": {"arm-2": "zz"}})",
+       "lcm_keys: arm-2: not a hex string"},
+      {"lcm_keys_type", R"({"lcm_keys": ["k"]})", "lcm_keys: expected"},
+      {"lcm_allow_unsigned_type",
+       R"({"lcm_allow_unsigned": "yes"})",
+       "lcm_allow_unsigned: expected true or false"},
       {"not_object", R"([1, 2, 3])", "expected a JSON object"},
   };
   for (const Rejection& c : cases) {

@@ -4,6 +4,8 @@
 
 #include <httplib.h>
 
+#include "model_cache.h"
+
 namespace frictiond {
 
 using nlohmann::json;
@@ -227,17 +229,119 @@ std::vector<MaterialInfo> FrictionClient::ListMaterials() {
 
 ModelSet FrictionClient::FetchModel(const std::string& material,
                                     int version,
-                                    const std::string& fingertip) {
-  std::string path =
-      "/v1/materials/" + UrlEncode(material) + "/model?fingertip=" +
-      UrlEncode(fingertip.empty() ? options_.fingertip : fingertip);
+                                    const std::string& fingertip,
+                                    FetchInfo* info) {
+  FetchResult r = FetchModelWithInfo(material, version, fingertip);
+  if (info) *info = std::move(r.info);
+  return std::move(r.model);
+}
+
+FetchResult FrictionClient::FetchModelWithInfo(const std::string& material,
+                                               int version,
+                                               const std::string& fingertip) {
+  const std::string tip = fingertip.empty() ? options_.fingertip : fingertip;
+  std::string path = "/v1/materials/" + UrlEncode(material) +
+                     "/model?fingertip=" + UrlEncode(tip);
   if (version > 0) path += "&version=" + std::to_string(version);
-  const json j = GetJson(path);
+  FetchResult out;
+  json j;
   try {
-    return ModelSetFromJson(j);
+    j = GetJson(path);
+  } catch (const ClientError& e) {
+    // No daemon answered: the offline cache, if there is one.
+    if (e.status() != 0 || options_.cache_dir.empty()) throw;
+    const internal::ModelCache cache(options_.cache_dir);
+    std::optional<internal::CachedEntry> entry;
+    try {
+      entry = cache.Get(material, tip, version);
+      if (!entry && version > 0) {
+        // The newest cached model may be the version asked for.
+        entry = cache.Get(material, tip, 0);
+        if (entry && entry->version != version) entry.reset();
+      }
+    } catch (const std::runtime_error& bad) {
+      throw ClientError(
+          0, std::string(e.what()) + "; " + bad.what() + " and was not used");
+    }
+    if (!entry)
+      throw ClientError(
+          0,
+          std::string(e.what()) + "; no cached model of " + material +
+              " (fingertip " + tip +
+              (version > 0 ? ", version " + std::to_string(version)
+                           : std::string()) +
+              ") in " + options_.cache_dir);
+    out.model = ModelSetFromJson(entry->model);  // verified by Get
+    out.info.source = "cache";
+    out.info.stale = true;
+    out.info.version = entry->version;
+    out.info.fetched_at = entry->fetched_at;
+    out.info.server = entry->server;
+    out.info.daemon_error = e.what();
+    return out;
+  }
+  try {
+    out.model = ModelSetFromJson(j);
   } catch (const std::exception& e) {
     throw ClientError(200, "GET " + path + ": malformed model: " + e.what(), j);
   }
+  out.info.source = "daemon";
+  out.info.stale = false;
+  out.info.version = out.model.version;
+  out.info.fetched_at = internal::UtcNowIso8601();
+  out.info.server = options_.base_url;
+  if (!options_.cache_dir.empty()) {
+    // The fetch succeeded; a cache that cannot be written is reported, not
+    // fatal.
+    try {
+      internal::ModelCache(options_.cache_dir)
+          .Put(material,
+               tip,
+               j,
+               out.model.version,
+               /*latest=*/version == 0,
+               out.info.fetched_at,
+               out.info.server);
+    } catch (const std::exception& e) {
+      out.info.cache_error = e.what();
+    }
+  }
+  return out;
+}
+
+std::vector<ResyncEntry> FrictionClient::Resync() {
+  std::vector<ResyncEntry> out;
+  if (options_.cache_dir.empty()) return out;
+  const internal::ModelCache cache(options_.cache_dir);
+  for (const auto& [material, fingertip] : cache.ListLatest()) {
+    ResyncEntry r;
+    r.material = material;
+    r.fingertip = fingertip;
+    try {
+      if (auto e = cache.Get(material, fingertip, 0))
+        r.cached_version = e->version;
+    } catch (const std::runtime_error&) {
+      r.cached_version = 0;  // corrupted: replaced below
+    }
+    try {
+      FetchResult f = FetchModelWithInfo(material, 0, fingertip);
+      if (f.info.stale) {
+        // Served from the cache: no daemon answered.
+        throw ClientError(0, "resync: " + f.info.daemon_error);
+      }
+      r.version = f.info.version;
+      r.error = f.info.cache_error;
+    } catch (const ClientError& e) {
+      if (e.status() == 0)
+        throw ClientError(0,
+                          std::string(e.what()).rfind("resync: ", 0) == 0
+                              ? e.what()
+                              : std::string("resync: ") + e.what());
+      r.error = e.what();
+    }
+    out.push_back(r);
+  }
+  return out;
 }
 
 UploadReply FrictionClient::UploadStrokes(

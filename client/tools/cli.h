@@ -19,6 +19,8 @@ struct Globals {
   std::string server = "http://127.0.0.1:8080";  ///< daemon base URL (--server,
                                                  ///< env FRICTIOND_SERVER)
   std::string fingertip = "default";             ///< fingertip id (--fingertip)
+  std::string cache_dir;  ///< offline model cache (--cache-dir, env
+                          ///< FRICTIOND_CACHE_DIR); "" = none
 };
 
 /// Reads and parses a stroke CSV file.

@@ -102,7 +102,11 @@ void RegisterCoreCommands(CLI::App& app, Globals& g) {
   // show
   {
     auto* cmd = app.add_subcommand(
-        "show", "show a material's newest (or a given) model");
+        "show",
+        "show a material's newest (or a given) model (alias: model); with "
+        "--cache-dir served from the cache, with a warning, when no daemon "
+        "answers");
+    cmd->alias("model");
     static std::string id;
     static int version = 0;
     static bool as_json = false;
@@ -112,12 +116,55 @@ void RegisterCoreCommands(CLI::App& app, Globals& g) {
     cmd->callback([&g] {
       RunCommand([&] {
         FrictionClient c = MakeClient(g);
-        const ModelSet m = c.FetchModel(id, version);
+        const FetchResult r = c.FetchModelWithInfo(id, version);
+        const ModelSet& m = r.model;
+        if (r.info.stale) {
+          std::cerr << "friction: warning: STALE model from the cache "
+                    << g.cache_dir << " (version " << r.info.version
+                    << ", fetched " << r.info.fetched_at << " from "
+                    << r.info.server
+                    << "): no daemon answered: " << r.info.daemon_error << "\n";
+        }
+        if (!r.info.cache_error.empty())
+          std::cerr << "friction: warning: cache not updated: "
+                    << r.info.cache_error << "\n";
         if (as_json) {
           std::cout << ModelSetToJson(m).dump(2) << "\n";
         } else {
           PrintModelSummary(m);
         }
+      });
+    });
+  }
+  // resync
+  {
+    auto* cmd = app.add_subcommand(
+        "resync",
+        "refresh every model in the offline cache (--cache-dir) from the "
+        "daemon");
+    cmd->callback([&g] {
+      RunCommand([&] {
+        if (g.cache_dir.empty())
+          throw std::invalid_argument(
+              "resync: no cache (give --cache-dir or FRICTIOND_CACHE_DIR)");
+        FrictionClient c = MakeClient(g);
+        int failed = 0;
+        for (const ResyncEntry& e : c.Resync()) {
+          if (e.error.empty()) {
+            std::printf("%-24s %-12s v%d -> v%d\n",
+                        e.material.c_str(),
+                        e.fingertip.c_str(),
+                        e.cached_version,
+                        e.version);
+          } else {
+            ++failed;
+            std::printf("%-24s %-12s not refreshed: %s\n",
+                        e.material.c_str(),
+                        e.fingertip.c_str(),
+                        e.error.c_str());
+          }
+        }
+        if (failed > 0) throw CLI::RuntimeError(1);
       });
     });
   }

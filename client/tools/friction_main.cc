@@ -13,6 +13,12 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--fingertip", g.fingertip, "fingertip id")
       ->capture_default_str();
+  if (const char* env = std::getenv("FRICTIOND_CACHE_DIR")) g.cache_dir = env;
+  app.add_option("--cache-dir",
+                 g.cache_dir,
+                 "offline model cache: fetched models are kept there and "
+                 "served (stale) when no daemon answers (env "
+                 "FRICTIOND_CACHE_DIR)");
   frictiond::cli::RegisterCoreCommands(app, g);
   frictiond::cli::RegisterDiagnoseCommand(app, g);
   frictiond::cli::RegisterReportCommand(app, g);

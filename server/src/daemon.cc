@@ -2,12 +2,31 @@
 
 #include <fstream>
 #include <iostream>
+#include <iterator>
 
+#include "frictiond/crypto/hmac.h"
+#include "frictiond/server/lcm_auth.h"
 #include "frictiond/server/routes.h"
 
 namespace frictiond {
 
 using nlohmann::json;
+
+std::map<std::string, std::string> DaemonConfig::LoadLcmKeys() const {
+  std::map<std::string, std::string> keys =
+      ParseLcmKeys(json(lcm_keys).dump(), "lcm_keys");
+  if (!lcm_keys_file.empty()) {
+    std::ifstream in(lcm_keys_file);
+    if (!in)
+      throw std::invalid_argument("--lcm-keys " + lcm_keys_file +
+                                  ": cannot read");
+    const std::string text((std::istreambuf_iterator<char>(in)),
+                           std::istreambuf_iterator<char>());
+    for (auto& [robot, key] : ParseLcmKeys(text, "--lcm-keys " + lcm_keys_file))
+      keys[robot] = key;
+  }
+  return keys;
+}
 
 void DaemonConfig::LoadFile(const std::string& path) {
   std::ifstream in(path);
@@ -42,8 +61,18 @@ void DaemonConfig::LoadFile(const std::string& path) {
     *out = obj[key].get<double>();
   };
   for (auto it = j.begin(); it != j.end(); ++it) {
-    static const char* kKeys[] = {
-        "db", "port", "bind", "data", "lcm", "max_body_mb", "threads", "plan"};
+    static const char* kKeys[] = {"db",
+                                  "port",
+                                  "bind",
+                                  "data",
+                                  "lcm",
+                                  "max_body_mb",
+                                  "threads",
+                                  "plan",
+                                  "lcm_keys",
+                                  "lcm_keys_file",
+                                  "lcm_allow_unsigned",
+                                  "lcm_max_skew_s"};
     if (std::find(std::begin(kKeys), std::end(kKeys), it.key()) ==
         std::end(kKeys)) {
       throw std::invalid_argument(path + ": unknown key '" + it.key() + "'");
@@ -56,6 +85,23 @@ void DaemonConfig::LoadFile(const std::string& path) {
   integer(j, "port", &port);
   integer(j, "max_body_mb", &max_body_mb);
   integer(j, "threads", &threads);
+  str("lcm_keys_file", &lcm_keys_file);
+  if (j.contains("lcm_allow_unsigned")) {
+    if (!j["lcm_allow_unsigned"].is_boolean())
+      throw std::invalid_argument(
+          path + ": lcm_allow_unsigned: expected true or false");
+    lcm_allow_unsigned = j["lcm_allow_unsigned"].get<bool>();
+  }
+  if (j.contains("lcm_max_skew_s")) {
+    if (!j["lcm_max_skew_s"].is_number())
+      throw std::invalid_argument(path + ": lcm_max_skew_s: expected a number");
+    lcm_max_skew_s = j["lcm_max_skew_s"].get<double>();
+  }
+  if (j.contains("lcm_keys")) {
+    // Checked here (hex, length); kept as hex like the file.
+    const auto raw = ParseLcmKeys(j["lcm_keys"].dump(), path + ": lcm_keys");
+    for (const auto& [robot, key] : raw) lcm_keys[robot] = ToHex(key);
+  }
   if (j.contains("plan")) {
     const json& p = j["plan"];
     if (!p.is_object())
@@ -94,6 +140,11 @@ void DaemonConfig::Validate() const {
     throw std::invalid_argument("plan: min_span_pct must be in (0, 100]");
   if (lcm_url.empty())
     throw std::invalid_argument("--lcm: empty (give a provider URL or none)");
+  if (!(lcm_max_skew_s > 0 && lcm_max_skew_s <= 3600))
+    throw std::invalid_argument("--lcm-max-skew-s " +
+                                std::to_string(lcm_max_skew_s) +
+                                ": must be in (0, 3600]");
+  LoadLcmKeys();  // throws naming the file or robot
   if (lcm_url != "none" && !HaveLcmEndpoint())
     throw std::invalid_argument("--lcm " + lcm_url +
                                 ": this build has no LCM support "
@@ -133,9 +184,19 @@ int Daemon::Start() {
     LcmEndpointOptions lo_lcm;
     lo_lcm.url = config_.lcm_url;
     lo_lcm.recognize = recognize;
+    lo_lcm.security.keys = config_.LoadLcmKeys();
+    lo_lcm.security.allow_unsigned = config_.lcm_allow_unsigned;
+    lo_lcm.security.max_skew_s = config_.lcm_max_skew_s;
+    lo_lcm.metrics = &http_->metrics();
+    if (lo_lcm.security.keys.empty() && !lo_lcm.security.allow_unsigned)
+      std::cerr << "frictiond: LCM: no lcm_keys and lcm_allow_unsigned off: "
+                   "robots can query but every stroke chunk is dropped\n";
     lcm_ = std::make_unique<LcmEndpoint>(*library_, lo_lcm);
     lcm_->Start();
-    std::cerr << "frictiond: LCM endpoint on " << config_.lcm_url << "\n";
+    std::cerr << "frictiond: LCM endpoint on " << config_.lcm_url << " ("
+              << lo_lcm.security.keys.size() << " robot key(s), unsigned "
+              << (lo_lcm.security.allow_unsigned ? "allowed" : "rejected")
+              << ")\n";
   }
   return port;
 }

@@ -20,6 +20,7 @@
 #include <lcm/lcm-cpp.hpp>
 
 #include "frictiond/coverage_progress_v1.hpp"
+#include "frictiond/crypto/lcm_signing.h"
 #include "frictiond/error_v1.hpp"
 #include "frictiond/estimators/preprocessing.h"
 #include "frictiond/estimators/span_coverage.h"
@@ -31,6 +32,7 @@
 #include "frictiond/proto/lcm_channels.h"
 #include "frictiond/proto/lugre_json.h"
 #include "frictiond/stroke_chunk_v1.hpp"
+#include "frictiond/stroke_chunk_v2.hpp"
 
 namespace frictiond {
 
@@ -145,7 +147,8 @@ class LcmEndpointImpl {
       : library_(library),
         options_(std::move(options)),
         lcm_(options_.url),
-        reassembler_(options_.reassembly) {
+        reassembler_(options_.reassembly),
+        auth_(options_.security) {
     if (!lcm_.good())
       throw std::runtime_error(
           "--lcm " + options_.url +
@@ -156,6 +159,16 @@ class LcmEndpointImpl {
     publisher_ = std::make_shared<LcmPublisher>(&lcm_);
     lcm_.subscribe(kLcmQueryChannel, &LcmEndpointImpl::OnQuery, this);
     lcm_.subscribe(kLcmStrokeChannel, &LcmEndpointImpl::OnChunk, this);
+    lcm_.subscribe(
+        kLcmSignedStrokeChannel, &LcmEndpointImpl::OnSignedChunk, this);
+    // The drop counters exist (at 0) from the start.
+    for (LcmDropReason r : {LcmDropReason::kForged,
+                            LcmDropReason::kReplayed,
+                            LcmDropReason::kStale,
+                            LcmDropReason::kUnknownRobot,
+                            LcmDropReason::kUnsigned})
+      Count(DropCounter(r), 0);
+    Count("lcm_signed_accepted_total", 0);
     // Tell the fleet about every new model version, from any endpoint.
     std::weak_ptr<LcmPublisher> weak = publisher_;
     library_.AddModelListener([weak](const CachedModel& m) {
@@ -377,6 +390,39 @@ class LcmEndpointImpl {
 
   // --- stroke chunks
   // ----------------------------------------------------------
+  static std::string DropCounter(LcmDropReason r) {
+    return std::string("lcm_dropped_total{reason=\"") + LcmDropReasonName(r) +
+           "\"}";
+  }
+  void Count(const std::string& counter, std::int64_t by = 1) {
+    if (options_.metrics) options_.metrics->Increment(counter, by);
+  }
+  // A write that fails the security checks: counted, answered with an
+  // error_v1 naming the field (except a replay), nothing of it kept.
+  void Drop(const char* type,
+            LcmDropReason reason,
+            const std::string& robot,
+            std::int64_t job_id,
+            int stroke,
+            int seq,
+            const std::string& field,
+            const std::string& detail) {
+    Count(DropCounter(reason));
+    // A replay is not answered: the original got through, and a network
+    // duplicate is no error of the sender's.
+    if (reason == LcmDropReason::kReplayed) return;
+    PublishError(type,
+                 "",
+                 robot,
+                 job_id,
+                 stroke,
+                 seq,
+                 field,
+                 std::string(type) + " dropped (" + LcmDropReasonName(reason) +
+                     "): " + detail);
+  }
+
+  // Unsigned chunks: only when the daemon allows them.
   void OnChunk(const lcm::ReceiveBuffer* rbuf, const std::string&) {
     stroke_chunk_v1 m;
     if (m.decode(rbuf->data, 0, rbuf->data_size) < 0) {
@@ -392,15 +438,78 @@ class LcmEndpointImpl {
                        " bytes (wrong type or truncated)");
       return;
     }
-    auto reject = [&](const std::string& field, const std::string& why) {
-      PublishError("stroke_chunk_v1",
+    if (!options_.security.allow_unsigned)
+      return Drop("stroke_chunk_v1",
+                  LcmDropReason::kUnsigned,
+                  m.robot.substr(0, kMaxTextField),
+                  m.job_id,
+                  m.stroke,
+                  m.seq,
+                  "(unsigned)",
+                  "this daemon accepts only signed stroke chunks "
+                  "(stroke_chunk_v2 on " +
+                      std::string(kLcmSignedStrokeChannel) +
+                      "; or run it with lcm_allow_unsigned)");
+    HandleChunk(std::move(m), "stroke_chunk_v1");
+  }
+
+  // Signed chunks: robot key, MAC, timestamp and nonce, then as unsigned.
+  void OnSignedChunk(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    stroke_chunk_v2 s;
+    if (s.decode(rbuf->data, 0, rbuf->data_size) < 0) {
+      // Cannot even be read: counted as forged (nothing verifies).
+      Count(DropCounter(LcmDropReason::kForged));
+      PublishError("stroke_chunk_v2",
                    "",
-                   m.robot,
-                   m.job_id,
-                   m.stroke,
-                   m.seq,
-                   field,
-                   why);
+                   "",
+                   0,
+                   0,
+                   -1,
+                   "(encoding)",
+                   "stroke_chunk_v2: cannot decode " +
+                       std::to_string(rbuf->data_size) +
+                       " bytes (wrong type or truncated)");
+      return;
+    }
+    const LcmAuthVerdict v = auth_.Check(
+        s.robot,
+        s.utime,
+        LcmMessageNonce(s),
+        LcmMessageMac(s),
+        [&s](const std::string& key) { return CalcLcmMessageMac(s, key); },
+        NowUtime());
+    if (!v.ok())
+      return Drop("stroke_chunk_v2",
+                  v.reason,
+                  s.robot.substr(0, kMaxTextField),
+                  s.job_id,
+                  s.stroke,
+                  s.seq,
+                  v.field,
+                  v.detail);
+    Count("lcm_signed_accepted_total");
+    stroke_chunk_v1 m;
+    m.utime = s.utime;
+    m.job_id = s.job_id;
+    m.stroke = s.stroke;
+    m.robot = std::move(s.robot);
+    m.material = std::move(s.material);
+    m.fingertip = std::move(s.fingertip);
+    m.seq = s.seq;
+    m.total_chunks = s.total_chunks;
+    m.last = s.last;
+    m.n_samples = s.n_samples;
+    m.t_s = std::move(s.t_s);
+    m.fn_n = std::move(s.fn_n);
+    m.ft_n = std::move(s.ft_n);
+    m.v_mm_s = std::move(s.v_mm_s);
+    HandleChunk(std::move(m), "stroke_chunk_v2");
+  }
+
+  // A chunk whose sender is trusted: validation and reassembly.
+  void HandleChunk(stroke_chunk_v1 m, const char* type) {
+    auto reject = [&](const std::string& field, const std::string& why) {
+      PublishError(type, "", m.robot, m.job_id, m.stroke, m.seq, field, why);
     };
     const std::string fingertip = m.fingertip.empty() ? "default" : m.fingertip;
     if (m.robot.size() > kMaxTextField)
@@ -705,6 +814,7 @@ class LcmEndpointImpl {
   lcm::LCM lcm_;
   std::shared_ptr<LcmPublisher> publisher_;
   StrokeReassembler reassembler_;
+  LcmAuthenticator auth_;
   std::map<std::int64_t, JobProgress> jobs_;
   std::atomic<bool> stop_{false};
   std::thread thread_;

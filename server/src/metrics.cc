@@ -75,9 +75,15 @@ std::string Metrics::Render() const {
     out << "frictiond_http_request_duration_seconds_count{route=\"" << route
         << "\"} " << s->count.load() << "\n";
   }
+  // A counter name may carry labels ("lcm_dropped_total{reason=\"forged\"}");
+  // the map is sorted, so the series of one name are adjacent and share one
+  // TYPE line.
+  std::string last_base;
   for (const auto& [name, v] : counters_) {
-    out << "# TYPE frictiond_" << name << " counter\nfrictiond_" << name << " "
-        << v->load() << "\n";
+    const std::string base = name.substr(0, name.find('{'));
+    if (base != last_base) out << "# TYPE frictiond_" << base << " counter\n";
+    last_base = base;
+    out << "frictiond_" << name << " " << v->load() << "\n";
   }
   return out.str();
 }

@@ -31,6 +31,8 @@ class LcmEndpointTest : public ::testing::Test {
     o.reassembly.resend_after_s = 0.2;
     o.reassembly.give_up_after_s = 1.0;
     o.max_strokes_per_job = 2;
+    // These tests check validation of the chunk fields: unsigned chunks.
+    o.security.allow_unsigned = true;
     // A stand-in recognition hook: "IMG:<id>" is recognised as <id>,
     // "IMG-BAD" cannot be decoded, anything else is unknown.
     o.recognize = [](const std::string& image) {

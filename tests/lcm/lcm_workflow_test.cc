@@ -5,11 +5,13 @@
 // stroke covers too little span, and receives the fitted model, which must
 // match the truth. A second test restarts the daemon in the middle of a job.
 #include <cmath>
+#include <fstream>
 #include <string>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "frictiond/crypto/hmac.h"
 #include "frictiond/material_reply_v1.hpp"
 #include "frictiond/storage/store.h"
 #include "frictiond/testing/daemon_process.h"
@@ -63,12 +65,21 @@ class LcmWorkflowTest : public ::testing::Test {
     std::string why;
     if (!ft::CheckLcmLoopback(url_, &why)) GTEST_SKIP() << why;
   }
+  // The daemon knows the simulated robot's key (signed writes only).
   ft::DaemonOptions Options(const ft::TempDir& dir) const {
+    const std::string keys = dir.path() + "/lcm_keys.json";
+    std::ofstream(keys) << nlohmann::json{{"sim-robot", ToHex(Key())}}.dump();
     ft::DaemonOptions o;
     o.db = dir.path() + "/lib.db";
     o.data = "none";
     o.lcm = url_;
+    o.extra_args = {"--lcm-keys", keys};
     return o;
+  }
+  static std::string Key() { return RandomKeyOnce(); }
+  static const std::string& RandomKeyOnce() {
+    static const std::string k = RandomBytes(32);
+    return k;
   }
   std::string url_;
 };
@@ -86,6 +97,7 @@ TEST_F(LcmWorkflowTest, UnknownMaterialIsIdentifiedFromASimulatedStroke) {
   o.reorder = true;
   o.hold_back = true;
   o.narrow_first_stroke = true;
+  o.key = Key();
   const ft::RobotSimResult r = ft::RunRobotSimulation(o);
   ASSERT_TRUE(r.ok) << r.why << "\n" << JoinLog(r) << daemon.ReadLog();
   EXPECT_EQ(r.reply_status, +material_reply_v1::STATUS_UNKNOWN);
@@ -105,6 +117,20 @@ TEST_F(LcmWorkflowTest, UnknownMaterialIsIdentifiedFromASimulatedStroke) {
   EXPECT_EQ(body["version"], r.model_version);
   EXPECT_DOUBLE_EQ(body["stochastic"]["coefficients"]["fn_n"].get<double>(),
                    r.coefficients.at("fn_n"));
+  // The duplicated chunks repeated signed bytes: dropped as replays, and
+  // counted; nothing was forged.
+  auto metrics = http->Get("/metrics");
+  ASSERT_TRUE(metrics);
+  EXPECT_NE(metrics->body.find("frictiond_lcm_signed_accepted_total "),
+            std::string::npos);
+  EXPECT_EQ(
+      metrics->body.find("frictiond_lcm_dropped_total{reason=\"replayed\"} 0"),
+      std::string::npos)
+      << metrics->body;
+  EXPECT_NE(
+      metrics->body.find("frictiond_lcm_dropped_total{reason=\"forged\"} 0"),
+      std::string::npos)
+      << metrics->body;
   // A known material now answers with the model.
   std::int64_t job = -1;
   EXPECT_EQ(ft::QueryMaterialOnce(url_, "sim-rubber", "default", &job),
@@ -147,6 +173,7 @@ TEST_F(LcmWorkflowTest, JobSurvivesADaemonRestart) {
   o.truth = Truth();
   o.truth.b0 = 0.7;
   o.seed = 5;
+  o.key = Key();
   const ft::RobotSimResult r = ft::RunRobotSimulation(o);
   ASSERT_TRUE(r.ok) << r.why << "\n" << JoinLog(r) << daemon.ReadLog();
   EXPECT_EQ(r.job_id, job);

@@ -8,6 +8,8 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "frictiond/crypto/hmac.h"
+
 #include "robot_simulator.h"
 
 int main(int argc, char** argv) {
@@ -30,11 +32,24 @@ int main(int argc, char** argv) {
   app.add_flag("--narrow-first",
                o.narrow_first_stroke,
                "first stroke covers too little span");
+  std::string key_hex;
+  app.add_option("--key",
+                 key_hex,
+                 "the robot's LCM key in hex: sign chunks (stroke_chunk_v2); "
+                 "none: unsigned stroke_chunk_v1");
   double tolerance_se = 5.0;
   app.add_option("--tolerance-se",
                  tolerance_se,
                  "allowed |estimate - truth| in standard errors");
   CLI11_PARSE(app, argc, argv);
+  if (!key_hex.empty()) {
+    const auto key = frictiond::FromHex(key_hex);
+    if (!key) {
+      std::cerr << "frictiond_robot_sim: --key: not a hex string\n";
+      return 2;
+    }
+    o.key = *key;
+  }
   const auto r = frictiond::testing::RunRobotSimulation(o);
   nlohmann::json out = {{"ok", r.ok},
                         {"why", r.why},

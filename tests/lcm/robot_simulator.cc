@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "frictiond/coverage_progress_v1.hpp"
+#include "frictiond/crypto/lcm_signing.h"
 #include "frictiond/error_v1.hpp"
 #include "frictiond/identification_request_v1.hpp"
 #include "frictiond/material_query_v1.hpp"
@@ -18,6 +19,7 @@
 #include "frictiond/model_update_v1.hpp"
 #include "frictiond/proto/lcm_channels.h"
 #include "frictiond/stroke_chunk_v1.hpp"
+#include "frictiond/stroke_chunk_v2.hpp"
 
 namespace frictiond::testing {
 
@@ -185,6 +187,40 @@ RobotSimResult RunRobotSimulation(const RobotSimOptions& o) {
 
   // Chunks of the stroke being streamed, by seq, for resends.
   std::vector<stroke_chunk_v1> chunks;
+  // Sends chunk k: signed anew (fresh utime and nonce) when the robot has a
+  // key; `repeat_last` re-publishes the previous bytes unchanged (a network
+  // duplicate).
+  std::string last_bytes;
+  auto send = [&](int k, bool repeat_last) {
+    ++res.chunks_sent;
+    if (o.key.empty()) {
+      lcm.publish(kLcmStrokeChannel, &chunks[k]);
+      return;
+    }
+    if (!repeat_last) {
+      const stroke_chunk_v1& c = chunks[k];
+      stroke_chunk_v2 s;
+      s.job_id = c.job_id;
+      s.stroke = c.stroke;
+      s.robot = c.robot;
+      s.material = c.material;
+      s.fingertip = c.fingertip;
+      s.seq = c.seq;
+      s.total_chunks = c.total_chunks;
+      s.last = c.last;
+      s.n_samples = c.n_samples;
+      s.t_s = c.t_s;
+      s.fn_n = c.fn_n;
+      s.ft_n = c.ft_n;
+      s.v_mm_s = c.v_mm_s;
+      SignLcmMessage(&s, o.key);
+      last_bytes.assign(static_cast<std::size_t>(s.getEncodedSize()), '\0');
+      s.encode(last_bytes.data(), 0, static_cast<int>(last_bytes.size()));
+    }
+    lcm.publish(kLcmSignedStrokeChannel,
+                last_bytes.data(),
+                static_cast<unsigned>(last_bytes.size()));
+  };
   int current_stroke = -1;
   int held_back = -1;
   std::size_t seen_requests = 0, seen_progress = 0, seen_errors = 0;
@@ -270,12 +306,8 @@ RobotSimResult RunRobotSimulation(const RobotSimOptions& o) {
       held_back = o.hold_back && total > 2 ? 1 : -1;
       for (int k : order) {
         if (k == held_back) continue;
-        lcm.publish(kLcmStrokeChannel, &chunks[k]);
-        ++res.chunks_sent;
-        if (o.duplicate && k % 3 == 0) {
-          lcm.publish(kLcmStrokeChannel, &chunks[k]);
-          ++res.chunks_sent;
-        }
+        send(k, false);
+        if (o.duplicate && k % 3 == 0) send(k, true);
         // Pace the stream a little (a robot streams as it samples): udpm
         // drops datagrams that overflow the receiver's socket buffer, which
         // the resend requests then repair.
@@ -294,8 +326,7 @@ RobotSimResult RunRobotSimulation(const RobotSimOptions& o) {
         ++res.resend_requests;
         for (int seq : p.missing_seqs) {
           if (seq >= 0 && seq < static_cast<int>(chunks.size())) {
-            lcm.publish(kLcmStrokeChannel, &chunks[seq]);
-            ++res.chunks_sent;
+            send(seq, false);
           }
         }
       }

@@ -33,6 +33,12 @@ struct RobotSimOptions {
   /// range (too little span: the daemon must ask for a follow-up).
   bool narrow_first_stroke = false;
   double timeout_s = 30.0;  ///< whole conversation
+  /// The robot's LCM key (raw bytes): chunks go signed as stroke_chunk_v2
+  /// on FRICTIOND_STROKE_V2, each send (resends too) with a fresh nonce; a
+  /// duplicate (`duplicate`) repeats the signed bytes, which the daemon
+  /// drops as replayed. Empty: unsigned stroke_chunk_v1 (the daemon must
+  /// allow unsigned writes).
+  std::string key;
 };
 
 /// What happened.

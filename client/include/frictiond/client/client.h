@@ -12,6 +12,10 @@
 ///   double p = frictiond::CalcSlipLikelihood(s, fn_n, ft_n);     // ~ns, no
 ///   I/O
 /// @endcode
+///
+/// With ClientOptions::cache_dir the client keeps working offline: fetched
+/// models are cached on disk and served, marked stale, when no daemon
+/// answers (docs/offline.md).
 
 #include <memory>
 #include <optional>
@@ -49,6 +53,38 @@ struct ClientOptions {
   std::string fingertip = "default";  ///< default fingertip of requests
   std::string robot;                  ///< sent as X-Robot-Id (may be empty)
   double timeout_s = 5.0;             ///< connect/read timeout
+  /// Directory of the offline model cache (docs/offline.md): every model
+  /// fetched is kept there, and served (stale) when no daemon answers.
+  /// "" = no cache. The CLI's --cache-dir / FRICTIOND_CACHE_DIR.
+  std::string cache_dir;
+};
+
+/// Where a fetched model came from (FetchModelWithInfo).
+struct FetchInfo {
+  std::string source;        ///< "daemon", or "cache" when no daemon answered
+  bool stale = false;        ///< true when served from the cache
+  int version = 0;           ///< the model's version
+  std::string fetched_at;    ///< when it came from a daemon (UTC, ISO 8601)
+  std::string server;        ///< the daemon URL it came from
+  std::string daemon_error;  ///< why the daemon was not used (stale only)
+  /// A cache problem that did not stop the fetch (e.g. the cache file could
+  /// not be written); "" when none.
+  std::string cache_error;
+};
+
+/// A model and where it came from.
+struct FetchResult {
+  ModelSet model;
+  FetchInfo info;
+};
+
+/// One cached (material, fingertip) refreshed by FrictionClient::Resync.
+struct ResyncEntry {
+  std::string material;
+  std::string fingertip;
+  int cached_version = 0;  ///< before (0: the cache file was unreadable)
+  int version = 0;         ///< after (0: not refreshed, see error)
+  std::string error;       ///< why it was not refreshed ("" = refreshed)
 };
 
 /// Summary of a material as listed by the daemon.
@@ -83,9 +119,25 @@ class FrictionClient {
   /// Newest model (version 0) or a given version of a material.
   /// @throws ClientError: 404 carries the identification request the daemon
   /// recorded (body()["identification"]).
+  /// With options().cache_dir set, the model is also written to the cache
+  /// (atomically), and when no daemon answers (status 0) the cached model is
+  /// returned instead; `info` (when not null) says which, and whether it is
+  /// stale.
+  /// @throws ClientError(0) when no daemon answers and the cache has no
+  /// usable model (none, or a corrupted file: the message says which).
   ModelSet FetchModel(const std::string& material,
                       int version = 0,
-                      const std::string& fingertip = "");
+                      const std::string& fingertip = "",
+                      FetchInfo* info = nullptr);
+  /// FetchModel with where the model came from.
+  FetchResult FetchModelWithInfo(const std::string& material,
+                                 int version = 0,
+                                 const std::string& fingertip = "");
+  /// Fetches the newest model of every (material, fingertip) in the cache
+  /// from the daemon and overwrites the cache (a corrupted file is replaced
+  /// too). No-op without cache_dir.
+  /// @throws ClientError(0) when no daemon answers (nothing is changed).
+  std::vector<ResyncEntry> Resync();
   /// Uploads a stroke CSV (text/csv). Extra query parameters (e.g.
   /// slip_peak_mm_s) may be given as name/value pairs.
   UploadReply UploadStrokes(

@@ -14,8 +14,11 @@ inline constexpr const char* kLcmReplyChannel = "FRICTIOND_REPLY_V1";
 /// Daemon -> robot: identification_request_v1 (the test stroke to perform).
 inline constexpr const char* kLcmIdentRequestChannel =
     "FRICTIOND_IDENT_REQUEST_V1";
-/// Robot -> daemon: stroke_chunk_v1.
+/// Robot -> daemon: stroke_chunk_v1 (unsigned; accepted only when the daemon
+/// runs with lcm_allow_unsigned).
 inline constexpr const char* kLcmStrokeChannel = "FRICTIOND_STROKE_V1";
+/// Robot -> daemon: stroke_chunk_v2 (signed with the robot's HMAC key).
+inline constexpr const char* kLcmSignedStrokeChannel = "FRICTIOND_STROKE_V2";
 /// Daemon -> robot: coverage_progress_v1 (also the resend request).
 inline constexpr const char* kLcmProgressChannel = "FRICTIOND_PROGRESS_V1";
 /// Daemon -> fleet: model_update_v1.

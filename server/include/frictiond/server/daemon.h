@@ -3,6 +3,7 @@
 /// The frictiond daemon: configuration, wiring of store, library, HTTP and
 /// LCM endpoints, start-up data loading and orderly shutdown.
 
+#include <map>
 #include <memory>
 #include <string>
 
@@ -23,10 +24,27 @@ struct DaemonConfig {
   int max_body_mb = 16;          ///< request body limit [MiB]
   int threads = 8;               ///< HTTP worker threads
   StrokePlanOptions plan;        ///< test stroke asked of robots
+  /// Per-robot LCM keys: robot id -> hex key (>= 32 hex digits), from the
+  /// config file's "lcm_keys" object (docs/lcm.md "Signed writes").
+  std::map<std::string, std::string> lcm_keys;
+  /// JSON file {"robot-id": "hex key"} (--lcm-keys); its entries are added
+  /// to lcm_keys (and win over them). "" = none.
+  std::string lcm_keys_file;
+  /// Accept unsigned stroke_chunk_v1 (--lcm-allow-unsigned). Off: only
+  /// signed stroke_chunk_v2 from robots with a key is accepted.
+  bool lcm_allow_unsigned = false;
+  /// Timestamp window of signed LCM writes [s] (--lcm-max-skew-s).
+  double lcm_max_skew_s = 30.0;
+
+  /// The LCM keys as raw bytes (lcm_keys plus lcm_keys_file).
+  /// @throws std::invalid_argument naming the file or robot and the rule.
+  std::map<std::string, std::string> LoadLcmKeys() const;
 
   /// Reads a JSON config file:
   /// {"db","port","bind","data","lcm","max_body_mb","threads", "plan":
-  /// {"fn_min_n","fn_max_n","v_min_mm_s","v_max_mm_s","max_duration_s","min_span_pct"}}.
+  /// {"fn_min_n","fn_max_n","v_min_mm_s","v_max_mm_s","max_duration_s","min_span_pct"},
+  /// "lcm_keys": {"robot": "hex"}, "lcm_keys_file", "lcm_allow_unsigned",
+  /// "lcm_max_skew_s"}.
   /// Keys not given keep their current value.
   /// @throws std::invalid_argument naming the file, key and rule.
   void LoadFile(const std::string& path);

@@ -4,7 +4,10 @@
 /// Fig. 11 over LCM, beside HTTP and on the same FrictionLibrary core.
 /// - material_query_v1 -> material_reply_v1 with the model, or "unknown"
 ///   plus an identification_request_v1 (the job is recorded in the Store);
-/// - stroke_chunk_v1 -> reassembled (StrokeReassembler), coverage checked
+/// - stroke_chunk_v2 (signed: HMAC-SHA256 per robot key, timestamp, nonce;
+///   forged, stale, replayed or unknown-robot messages are dropped and
+///   counted) or, only with security.allow_unsigned, stroke_chunk_v1
+///   -> reassembled (StrokeReassembler), coverage checked
 ///   (paper 000 III-E, Fig. 10), ingested through
 ///   FrictionLibrary::IngestStrokes (the HTTP upload's validation), with
 ///   coverage_progress_v1 along the way, a follow-up request when the span
@@ -17,7 +20,9 @@
 #include <memory>
 #include <string>
 
+#include "frictiond/server/lcm_auth.h"
 #include "frictiond/server/library.h"
+#include "frictiond/server/metrics.h"
 #include "frictiond/server/routes.h"
 #include "frictiond/server/stroke_reassembler.h"
 
@@ -41,6 +46,13 @@ struct LcmEndpointOptions {
   /// Recognition hook for queries with an image (empty: such queries are
   /// rejected). The daemon passes the one its HTTP routes use.
   RecognizeImageFn recognize;
+  /// Keys and checks of signed writes (stroke_chunk_v2), and whether
+  /// unsigned stroke_chunk_v1 is accepted (docs/lcm.md "Signed writes").
+  LcmSecurityOptions security;
+  /// Where dropped writes are counted (frictiond_lcm_dropped_total{reason})
+  /// and accepted signed ones (frictiond_lcm_signed_accepted_total); null:
+  /// not counted. Must outlive the endpoint.
+  Metrics* metrics = nullptr;
 };
 
 /// The endpoint. Not copyable or movable.

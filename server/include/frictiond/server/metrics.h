@@ -27,7 +27,9 @@ class Metrics {
               const std::string& method,
               int status,
               double seconds);
-  /// Adds to a named counter (e.g. "lcm_dropped_total").
+  /// Adds to a named counter (e.g. "lcm_dropped_total"), which may carry
+  /// Prometheus labels: "lcm_dropped_total{reason=\"forged\"}". by = 0
+  /// makes the series appear at 0.
   void Increment(const std::string& counter, std::int64_t by = 1);
   /// Prometheus text exposition format 0.0.4.
   std::string Render() const;

@@ -1,0 +1,30 @@
+#pragma once
+/// @file
+/// HMAC-SHA256 and helpers over OpenSSL libcrypto. Byte strings are
+/// std::string (any bytes, not only text).
+
+#include <cstddef>
+#include <optional>
+#include <string>
+
+namespace frictiond {
+
+/// HMAC-SHA256 of `data` under `key` (RFC 2104 / FIPS 198-1): 32 raw bytes.
+/// @throws std::runtime_error when libcrypto fails.
+std::string HmacSha256(const std::string& key, const std::string& data);
+
+/// Lower-case hex of bytes ("\x01\xab" -> "01ab").
+std::string ToHex(const std::string& bytes);
+
+/// Bytes of a hex string (upper or lower case); nullopt when the length is
+/// odd or a character is not a hex digit.
+std::optional<std::string> FromHex(const std::string& hex);
+
+/// Equality whose time does not depend on where the strings differ
+/// (CRYPTO_memcmp); strings of different lengths are unequal.
+bool ConstantTimeEqual(const std::string& a, const std::string& b);
+
+/// `n` bytes from the OpenSSL CSPRNG. @throws std::runtime_error on failure.
+std::string RandomBytes(std::size_t n);
+
+}  // namespace frictiond
