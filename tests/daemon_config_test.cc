@@ -112,6 +112,9 @@ TEST(DaemonConfigTest, BadConfigIsRejectedNamingTheField) {
       {"plan_field_type",
        R"({"plan": {"fn_max_n": "high"}})",
        "plan.fn_max_n: expected a number"},
+      {"open_reads_type",
+       R"({"open_reads": "yes"})",
+       "open_reads: expected true or false"},
       {"broken_json", R"({"port": 8080,)", "invalid JSON"},
       {"not_object", R"([1, 2, 3])", "expected a JSON object"},
   };

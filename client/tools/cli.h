@@ -19,6 +19,7 @@ struct Globals {
   std::string server = "http://127.0.0.1:8080";  ///< daemon base URL (--server,
                                                  ///< env FRICTIOND_SERVER)
   std::string fingertip = "default";             ///< fingertip id (--fingertip)
+  std::string token;  ///< API token secret (--token, env FRICTIOND_TOKEN)
 };
 
 /// Reads and parses a stroke CSV file.
@@ -44,6 +45,8 @@ void RegisterLuGreCommands(CLI::App& app, Globals& g);  // cli_lugre.cc
 void RegisterExportCommands(CLI::App& app,
                             Globals& g);  // cli_export.cc: export, pair
 void RegisterJointCommands(CLI::App& app, Globals& g);  // cli_joint.cc
+void RegisterTokenCommands(CLI::App& app,
+                           Globals& g);  // cli_token.cc: token, audit
 void RegisterPaper000Commands(
     CLI::App& app,
     Globals& g);  // cli_paper000.cc: target-force, sliding-speed, ...

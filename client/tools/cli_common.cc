@@ -12,6 +12,7 @@ FrictionClient MakeClient(const Globals& g) {
   ClientOptions o;
   o.base_url = g.server;
   o.fingertip = g.fingertip;
+  o.token = g.token;
   return FrictionClient(o);
 }
 

@@ -13,6 +13,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--fingertip", g.fingertip, "fingertip id")
       ->capture_default_str();
+  if (const char* env = std::getenv("FRICTIOND_TOKEN")) g.token = env;
+  app.add_option("--token",
+                 g.token,
+                 "API token secret sent as bearer token (env FRICTIOND_TOKEN; "
+                 "see docs/auth.md)");
   frictiond::cli::RegisterCoreCommands(app, g);
   frictiond::cli::RegisterDiagnoseCommand(app, g);
   frictiond::cli::RegisterReportCommand(app, g);
@@ -20,6 +25,7 @@ int main(int argc, char** argv) {
   frictiond::cli::RegisterExportCommands(app, g);
   frictiond::cli::RegisterJointCommands(app, g);
   frictiond::cli::RegisterPaper000Commands(app, g);
+  frictiond::cli::RegisterTokenCommands(app, g);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -49,6 +49,9 @@ struct ClientOptions {
   std::string fingertip = "default";  ///< default fingertip of requests
   std::string robot;                  ///< sent as X-Robot-Id (may be empty)
   double timeout_s = 5.0;             ///< connect/read timeout
+  /// API token secret, sent as "Authorization: Bearer <token>" when not
+  /// empty (docs/auth.md).
+  std::string token;
 };
 
 /// Summary of a material as listed by the daemon.
