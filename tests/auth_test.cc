@@ -257,8 +257,13 @@ TEST_F(AuthDispatchTest, EveryRouteTimesEveryRole) {
   // Rejections first, with requests that would store something if admitted.
   const std::vector<std::size_t> counts_before = Counts();
   const auto fp_before = DbFingerprint(db);
+  // Roles from this test's own table, not the server's.
+  auto need_of = [](const RouteKey& r) {
+    const auto it = kExpected.find({r.method, r.pattern});
+    return it == kExpected.end() ? Role::kOperator : it->second;
+  };
   for (const RouteKey& r : routes) {
-    const Role need = RequiredRole(r.method, r.pattern);
+    const Role need = need_of(r);
     for (const std::string& who : whos) {
       int want = 0;  // 0: admitted
       if (need == Role::kPublic) {
@@ -294,7 +299,7 @@ TEST_F(AuthDispatchTest, EveryRouteTimesEveryRole) {
   EXPECT_GT(rejected, 60);
   // Admitted: any status but 401/403 (a harmless id so nothing is deleted).
   for (const RouteKey& r : routes) {
-    const Role need = RequiredRole(r.method, r.pattern);
+    const Role need = need_of(r);
     for (const std::string& who : whos) {
       const bool admit =
           need == Role::kPublic || (who == "none" && need == Role::kReader) ||
@@ -315,6 +320,24 @@ TEST_F(AuthDispatchTest, EveryRouteTimesEveryRole) {
   EXPECT_NE(metrics.find("frictiond_http_unauthorized_total "),
             std::string::npos);
   EXPECT_NE(metrics.find("frictiond_http_forbidden_total "), std::string::npos);
+}
+
+TEST_F(AuthDispatchTest, UnlistedRoutesGetTheSecureDefault) {
+  int calls = 0;
+  auto handler = [&calls](const HttpRequest&) {
+    ++calls;
+    return HttpResponse::Json(200, {{"ok", true}});
+  };
+  daemon_->http().Route("POST", "/v1/unlisted/{id}", handler);
+  daemon_->http().Route("GET", "/v1/unlisted/{id}", handler);
+  EXPECT_EQ(Send("none", "POST", "/v1/unlisted/a").status, 401);
+  EXPECT_EQ(Send("reader", "POST", "/v1/unlisted/a").status, 403);
+  EXPECT_EQ(Send("robot", "POST", "/v1/unlisted/a").status, 403);
+  EXPECT_EQ(calls, 0);
+  EXPECT_EQ(Send("operator", "POST", "/v1/unlisted/a").status, 200);
+  EXPECT_EQ(Send("revoked", "GET", "/v1/unlisted/a").status, 401);
+  EXPECT_EQ(Send("none", "GET", "/v1/unlisted/a").status, 200);  // open read
+  EXPECT_EQ(calls, 2);
 }
 
 TEST_F(AuthDispatchTest, BadHeadersAreRejectedWithTheReason) {
