@@ -253,9 +253,9 @@ HttpResponse HttpServer::Dispatch(HttpRequest request) const {
     route = entry->route;
     MatchRoute(*entry, segs, request.path, &captures);
     request.params = std::move(captures);
-    std::optional<HttpResponse> rejected;
-    if (impl_->authorizer) rejected = impl_->authorizer(request, route);
     try {
+      std::optional<HttpResponse> rejected;
+      if (impl_->authorizer) rejected = impl_->authorizer(request, route);
       if (rejected) {
         out = std::move(*rejected);
       } else {
