@@ -10,7 +10,7 @@ packages=(
   libeigen3-dev libsqlite3-dev sqlite3 libcpp-httplib-dev nlohmann-json3-dev libcli11-dev
   liblcm-dev liblcm-bin libglib2.0-dev
   libopencv-dev
-  libssl-dev           # libcrypto: HMAC-SHA256 of signed LCM writes
+  libssl-dev           # SHA-256 / HMAC-SHA256 (API tokens, signed LCM)
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
   libtinyxml2-dev      # XML parser that checks the MJCF/SDF/URDF exports

@@ -1,5 +1,6 @@
 // frictiond: the friction material-library daemon. Parses flags, builds the
 // daemon, serves until SIGTERM/SIGINT.
+#include <cstdlib>
 #include <iostream>
 #include <thread>
 
@@ -47,6 +48,16 @@ int main(int argc, char** argv) {
   app.add_option("--lcm-max-skew-s",
                  lcm_max_skew_s,
                  "timestamp window of signed LCM writes in s [30]");
+  std::string open_reads, bootstrap_token;
+  app.add_option("--open-reads",
+                 open_reads,
+                 "answer lookups without a token when bound to loopback: "
+                 "true or false [true]")
+      ->check(CLI::IsMember({"true", "false"}));
+  app.add_option("--bootstrap-token",
+                 bootstrap_token,
+                 "secret of the operator token created on the first start "
+                 "(env FRICTIOND_BOOTSTRAP_TOKEN) [random, printed once]");
   CLI11_PARSE(app, argc, argv);
 
   // Block the stop signals in every thread; one thread waits for them.
@@ -69,6 +80,12 @@ int main(int argc, char** argv) {
     if (!lcm_keys.empty()) config.lcm_keys_file = lcm_keys;
     if (lcm_allow_unsigned) config.lcm_allow_unsigned = true;
     if (lcm_max_skew_s >= 0) config.lcm_max_skew_s = lcm_max_skew_s;
+    if (!open_reads.empty()) config.open_reads = open_reads == "true";
+    if (bootstrap_token.empty()) {
+      if (const char* env = std::getenv("FRICTIOND_BOOTSTRAP_TOKEN"))
+        bootstrap_token = env;
+    }
+    if (!bootstrap_token.empty()) config.bootstrap_token = bootstrap_token;
     frictiond::Daemon daemon(config);
     const int bound = daemon.Start();
     std::thread waiter([&daemon, stop_signals] {

@@ -114,6 +114,7 @@ class ClientTest : public ::testing::Test {
     ClientOptions o;
     o.base_url = daemon_->base_url();
     o.robot = "client-test";
+    o.token = daemon_->options().operator_token;
     return FrictionClient(o);
   }
 
@@ -130,8 +131,9 @@ class ClientTest : public ::testing::Test {
     const std::string out = dir_->path() + "/cli.out";
     const std::string err = dir_->path() + "/cli.err";
     const std::string cmd = testing::BinaryPath("friction") + " --server " +
-                            daemon_->base_url() + " " + args + " >" + out +
-                            " 2>" + err;
+                            daemon_->base_url() + " --token " +
+                            daemon_->options().operator_token + " " + args +
+                            " >" + out + " 2>" + err;
     const int status = std::system(cmd.c_str());
     r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
     r.out = ReadAll(out);

@@ -100,9 +100,10 @@ class JointCliTest : public ::testing::Test {
     const char* bin = std::getenv("FRICTIOND_BIN_DIR");
     const fs::path out = fs::path(dir_->path()) / "stdout.txt";
     const fs::path err = fs::path(dir_->path()) / "stderr.txt";
-    const std::string cmd = std::string(bin ? bin : "build/bin") +
-                            "/friction --server " + daemon_->base_url() + " " +
-                            args + " >" + out.string() + " 2>" + err.string();
+    const std::string cmd =
+        std::string(bin ? bin : "build/bin") + "/friction --server " +
+        daemon_->base_url() + " --token " + daemon_->options().operator_token +
+        " " + args + " >" + out.string() + " 2>" + err.string();
     const int status = std::system(cmd.c_str());
     CliRun r;
     r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
@@ -113,6 +114,7 @@ class JointCliTest : public ::testing::Test {
   static FrictionClient Client() {
     ClientOptions o;
     o.base_url = daemon_->base_url();
+    o.token = daemon_->options().operator_token;
     return FrictionClient(o);
   }
   static testing::TempDir* dir_;

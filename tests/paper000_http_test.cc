@@ -65,16 +65,18 @@ class Paper000HttpTest : public ::testing::Test {
   FrictionClient Client() {
     ClientOptions o;
     o.base_url = daemon_->base_url();
+    o.token = daemon_->options().operator_token;
     return FrictionClient(o);
   }
   // Runs the CLI; returns its exit code, stdout in *out, stderr in *err.
   int Cli(const std::string& args, std::string* out, std::string* err) {
     const std::string o = dir_->path() + "/out.txt";
     const std::string e = dir_->path() + "/err.txt";
-    const int status =
-        std::system((testing::BinaryPath("friction") + " --server " +
-                     daemon_->base_url() + " " + args + " >" + o + " 2>" + e)
-                        .c_str());
+    const int status = std::system(
+        (testing::BinaryPath("friction") + " --server " + daemon_->base_url() +
+         " --token " + daemon_->options().operator_token + " " + args + " >" +
+         o + " 2>" + e)
+            .c_str());
     *out = ReadText(o);
     *err = ReadText(e);
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;

@@ -34,6 +34,7 @@ struct FrictionClient::Impl {
     http.set_write_timeout(sec, usec);
     http.set_keep_alive(true);
     if (!o.robot.empty()) headers.emplace("X-Robot-Id", o.robot);
+    if (!o.token.empty()) headers.emplace("Authorization", "Bearer " + o.token);
   }
   httplib::Client http;
   httplib::Headers headers;

@@ -21,6 +21,7 @@ struct Globals {
   std::string fingertip = "default";             ///< fingertip id (--fingertip)
   std::string cache_dir;  ///< offline model cache (--cache-dir, env
                           ///< FRICTIOND_CACHE_DIR); "" = none
+  std::string token;  ///< API token secret (--token, env FRICTIOND_TOKEN)
 };
 
 /// Reads and parses a stroke CSV file.
@@ -46,6 +47,8 @@ void RegisterLuGreCommands(CLI::App& app, Globals& g);  // cli_lugre.cc
 void RegisterExportCommands(CLI::App& app,
                             Globals& g);  // cli_export.cc: export, pair
 void RegisterJointCommands(CLI::App& app, Globals& g);  // cli_joint.cc
+void RegisterTokenCommands(CLI::App& app,
+                           Globals& g);  // cli_token.cc: token, audit
 void RegisterPaper000Commands(
     CLI::App& app,
     Globals& g);  // cli_paper000.cc: target-force, sliding-speed, ...

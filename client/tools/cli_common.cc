@@ -13,6 +13,7 @@ FrictionClient MakeClient(const Globals& g) {
   o.base_url = g.server;
   o.fingertip = g.fingertip;
   o.cache_dir = g.cache_dir;
+  o.token = g.token;
   return FrictionClient(o);
 }
 

@@ -19,6 +19,11 @@ int main(int argc, char** argv) {
                  "offline model cache: fetched models are kept there and "
                  "served (stale) when no daemon answers (env "
                  "FRICTIOND_CACHE_DIR)");
+  if (const char* env = std::getenv("FRICTIOND_TOKEN")) g.token = env;
+  app.add_option("--token",
+                 g.token,
+                 "API token secret sent as bearer token (env FRICTIOND_TOKEN; "
+                 "see docs/auth.md)");
   frictiond::cli::RegisterCoreCommands(app, g);
   frictiond::cli::RegisterDiagnoseCommand(app, g);
   frictiond::cli::RegisterReportCommand(app, g);
@@ -26,6 +31,7 @@ int main(int argc, char** argv) {
   frictiond::cli::RegisterExportCommands(app, g);
   frictiond::cli::RegisterJointCommands(app, g);
   frictiond::cli::RegisterPaper000Commands(app, g);
+  frictiond::cli::RegisterTokenCommands(app, g);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

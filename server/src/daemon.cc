@@ -1,5 +1,6 @@
 #include "frictiond/server/daemon.h"
 
+#include <algorithm>
 #include <fstream>
 #include <iostream>
 #include <iterator>
@@ -68,6 +69,8 @@ void DaemonConfig::LoadFile(const std::string& path) {
                                   "lcm",
                                   "max_body_mb",
                                   "threads",
+                                  "open_reads",
+                                  "bootstrap_token",
                                   "plan",
                                   "lcm_keys",
                                   "lcm_keys_file",
@@ -82,6 +85,13 @@ void DaemonConfig::LoadFile(const std::string& path) {
   str("bind", &bind);
   str("data", &data_dir);
   str("lcm", &lcm_url);
+  str("bootstrap_token", &bootstrap_token);
+  if (j.contains("open_reads")) {
+    if (!j["open_reads"].is_boolean())
+      throw std::invalid_argument(path +
+                                  ": open_reads: expected true or false");
+    open_reads = j["open_reads"].get<bool>();
+  }
   integer(j, "port", &port);
   integer(j, "max_body_mb", &max_body_mb);
   integer(j, "threads", &threads);
@@ -145,6 +155,14 @@ void DaemonConfig::Validate() const {
                                 std::to_string(lcm_max_skew_s) +
                                 ": must be in (0, 3600]");
   LoadLcmKeys();  // throws naming the file or robot
+  if (!bootstrap_token.empty() &&
+      (bootstrap_token.size() < 16 || bootstrap_token.size() > 256 ||
+       std::any_of(bootstrap_token.begin(), bootstrap_token.end(), [](char c) {
+         return !(c > 0x20 && c < 0x7f);
+       })))
+    throw std::invalid_argument(
+        "--bootstrap-token: must be 16..256 printable characters without "
+        "spaces");
   if (lcm_url != "none" && !HaveLcmEndpoint())
     throw std::invalid_argument("--lcm " + lcm_url +
                                 ": this build has no LCM support "
@@ -171,6 +189,23 @@ int Daemon::Start() {
   ho.max_body_bytes = static_cast<std::size_t>(config_.max_body_mb) << 20;
   ho.threads = config_.threads;
   http_ = std::make_unique<HttpServer>(ho);
+  AuthOptions ao;
+  ao.open_reads = config_.open_reads && IsLoopbackAddress(config_.bind);
+  auth_ =
+      std::make_unique<Authenticator>(library_->store(), http_->metrics(), ao);
+  if (auto boot = auth_->BootstrapIfEmpty(config_.bootstrap_token)) {
+    if (config_.bootstrap_token.empty()) {
+      std::cout << "operator token: " << boot->secret << std::endl;
+      std::cerr << "frictiond: created operator token " << boot->record.id
+                << " (secret printed once on stdout; keep it)\n";
+    } else {
+      std::cerr << "frictiond: created operator token " << boot->record.id
+                << " with the secret given by --bootstrap-token\n";
+    }
+  }
+  if (config_.open_reads && !ao.open_reads)
+    std::cerr << "frictiond: bound to " << config_.bind
+              << " (not loopback): reads need a reader token\n";
   RegisterCoreRoutes(*http_, *library_);
   RegisterPaper000Routes(*http_, *library_);
   RegisterLuGreFeature(*http_, *library_);
@@ -179,6 +214,8 @@ int Daemon::Start() {
   RecognizeImageFn recognize = RegisterRecognitionRoutes(*http_, *library_);
   RegisterExportRoutes(*http_, *library_);
   RegisterConsoleRoutes(*http_, *library_);
+  RegisterAuthRoutes(*http_, *auth_, library_->store());
+  auth_->Install(*http_);
   const int port = http_->Bind(config_.bind, config_.port);
   if (config_.lcm_url != "none") {
     LcmEndpointOptions lo_lcm;
@@ -210,5 +247,6 @@ void Daemon::Stop() {
 
 FrictionLibrary& Daemon::library() { return *library_; }
 HttpServer& Daemon::http() { return *http_; }
+Authenticator& Daemon::auth() { return *auth_; }
 
 }  // namespace frictiond

@@ -1,6 +1,7 @@
 #include "frictiond/server/http_server.h"
 
 #include <chrono>
+#include <iostream>
 
 #include <httplib.h>
 
@@ -135,6 +136,8 @@ struct HttpServer::Impl {
   httplib::Server server;
   std::vector<RouteEntry> routes;
   Metrics metrics;
+  HttpAuthorizer authorizer;
+  HttpObserver observer;
 };
 
 HttpServer::HttpServer(HttpOptions options) : impl_(std::make_unique<Impl>()) {
@@ -216,6 +219,19 @@ void HttpServer::Route(const std::string& method,
       RouteEntry{method, SplitPath(pattern), pattern, std::move(handler)});
 }
 
+std::vector<RouteKey> HttpServer::Routes() const {
+  std::vector<RouteKey> out;
+  for (const RouteEntry& e : impl_->routes)
+    out.push_back(RouteKey{e.method, e.route});
+  return out;
+}
+
+void HttpServer::SetAuthorizer(HttpAuthorizer authorizer,
+                               HttpObserver observer) {
+  impl_->authorizer = std::move(authorizer);
+  impl_->observer = std::move(observer);
+}
+
 HttpResponse HttpServer::Dispatch(HttpRequest request) const {
   const auto start = std::chrono::steady_clock::now();
   std::string route = "unmatched";
@@ -238,7 +254,13 @@ HttpResponse HttpServer::Dispatch(HttpRequest request) const {
     MatchRoute(*entry, segs, request.path, &captures);
     request.params = std::move(captures);
     try {
-      out = entry->handler(request);
+      std::optional<HttpResponse> rejected;
+      if (impl_->authorizer) rejected = impl_->authorizer(request, route);
+      if (rejected) {
+        out = std::move(*rejected);
+      } else {
+        out = entry->handler(request);
+      }
     } catch (const RequestError& e) {
       json j = {{"error", ErrorTitle(e.status())}, {"detail", e.what()}};
       if (!e.field().empty()) j["field"] = e.field();
@@ -251,6 +273,15 @@ HttpResponse HttpServer::Dispatch(HttpRequest request) const {
       out = HttpResponse::Error(400, "bad request", e.what());
     } catch (const std::exception& e) {
       out = HttpResponse::Error(500, "internal error", e.what());
+    }
+    if (impl_->observer) {
+      try {
+        impl_->observer(request, route, out);
+      } catch (const std::exception& e) {
+        // The request itself succeeded or failed already; report and go on.
+        std::cerr << "frictiond: observer of " << route << ": " << e.what()
+                  << "\n";
+      }
     }
   } else if (path_matched) {
     out =

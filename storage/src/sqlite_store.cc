@@ -73,6 +73,16 @@ CREATE TABLE images(
 CREATE TABLE robots(
   id TEXT PRIMARY KEY, json TEXT NOT NULL, created_at TEXT NOT NULL, updated_at TEXT NOT NULL);
 )sql",
+    R"sql(
+CREATE TABLE tokens(
+  id TEXT PRIMARY KEY, name TEXT NOT NULL, role TEXT NOT NULL,
+  hash TEXT NOT NULL UNIQUE, created_at TEXT NOT NULL, revoked_at TEXT NOT NULL);
+CREATE TABLE audit(
+  id INTEGER PRIMARY KEY AUTOINCREMENT, at TEXT NOT NULL, actor TEXT NOT NULL,
+  role TEXT NOT NULL, remote TEXT NOT NULL, action TEXT NOT NULL,
+  material TEXT NOT NULL, detail TEXT NOT NULL);
+CREATE INDEX audit_material ON audit(material, id);
+)sql",
 };
 
 constexpr const char* kOpenStates =
@@ -586,6 +596,113 @@ class SqliteStore final : public Store {
     return out;
   }
 
+  bool AddToken(const TokenRecord& tok) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    Transaction tx(this);
+    auto& exists = Stmt("SELECT 1 FROM tokens WHERE id=? OR hash=?")
+                       .Reset()
+                       .Bind(tok.id)
+                       .Bind(tok.hash);
+    const bool existed = exists.Step();
+    exists.Reset();
+    if (existed) return false;
+    Stmt(
+        "INSERT INTO tokens(id,name,role,hash,created_at,revoked_at) "
+        "VALUES(?,?,?,?,?,'')")
+        .Reset()
+        .Bind(tok.id)
+        .Bind(tok.name)
+        .Bind(tok.role)
+        .Bind(tok.hash)
+        .Bind(NowIso8601())
+        .Run();
+    tx.Commit();
+    return true;
+  }
+
+  std::optional<TokenRecord> FindTokenByHash(const std::string& hash) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto& s = Stmt(
+                  "SELECT id,name,role,hash,created_at,revoked_at FROM tokens "
+                  "WHERE hash=?")
+                  .Reset()
+                  .Bind(hash);
+    std::optional<TokenRecord> out;
+    if (s.Step()) out = ReadToken(s);
+    s.Reset();
+    return out;
+  }
+
+  std::vector<TokenRecord> ListTokens() override {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto& s = Stmt(
+                  "SELECT id,name,role,hash,created_at,revoked_at FROM tokens "
+                  "ORDER BY created_at, rowid")
+                  .Reset();
+    std::vector<TokenRecord> out;
+    while (s.Step()) out.push_back(ReadToken(s));
+    return out;
+  }
+
+  bool RevokeToken(const std::string& id) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    Transaction tx(this);
+    Stmt("UPDATE tokens SET revoked_at=? WHERE id=? AND revoked_at=''")
+        .Reset()
+        .Bind(NowIso8601())
+        .Bind(id)
+        .Run();
+    const bool changed = sqlite3_changes(db_) > 0;
+    tx.Commit();
+    return changed;
+  }
+
+  std::int64_t AppendAudit(const AuditEntry& e) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    Transaction tx(this);
+    Stmt(
+        "INSERT INTO audit(at,actor,role,remote,action,material,detail) "
+        "VALUES(?,?,?,?,?,?,?)")
+        .Reset()
+        .Bind(NowIso8601())
+        .Bind(e.actor)
+        .Bind(e.role)
+        .Bind(e.remote)
+        .Bind(e.action)
+        .Bind(e.material)
+        .Bind(e.detail)
+        .Run();
+    const std::int64_t id = sqlite3_last_insert_rowid(db_);
+    tx.Commit();
+    return id;
+  }
+
+  std::vector<AuditEntry> ListAudit(std::int64_t after_id,
+                                    int limit,
+                                    const std::string& material) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto& s = Stmt(
+                  "SELECT id,at,actor,role,remote,action,material,detail "
+                  "FROM audit WHERE id>? AND (?='' OR material=?) "
+                  "ORDER BY id LIMIT ?")
+                  .Reset()
+                  .Bind(after_id)
+                  .Bind(material)
+                  .Bind(material)
+                  .Bind(static_cast<std::int64_t>(limit < 0 ? 0 : limit));
+    std::vector<AuditEntry> out;
+    while (s.Step())
+      out.push_back(AuditEntry{s.Int(0),
+                               s.Text(1),
+                               s.Text(2),
+                               s.Text(3),
+                               s.Text(4),
+                               s.Text(5),
+                               s.Text(6),
+                               s.Text(7)});
+    return out;
+  }
+
   int SchemaVersion() override {
     std::lock_guard<std::mutex> lock(mu_);
     return SchemaVersionLocked();
@@ -716,6 +833,10 @@ class SqliteStore final : public Store {
     return version;
   }
 
+  static TokenRecord ReadToken(const Statement& s) {
+    return TokenRecord{
+        s.Text(0), s.Text(1), s.Text(2), s.Text(3), s.Text(4), s.Text(5)};
+  }
   static Material ReadMaterial(const Statement& s) {
     return Material{s.Text(0),
                     s.Text(1),

@@ -161,6 +161,69 @@ TEST_P(StoreTest, ReopenKeepsDataAndSchema) {
   EXPECT_EQ(store_->CheckIntegrity(), "");
 }
 
+TEST_P(StoreTest, TokensFoundByHashAndRevokedOnce) {
+  TokenRecord a{
+      "tok_000000000001", "ops", "operator", std::string(64, 'a'), "", ""};
+  TokenRecord b{
+      "tok_000000000002", "arm", "robot", std::string(64, 'b'), "", ""};
+  EXPECT_TRUE(store_->AddToken(a));
+  EXPECT_TRUE(store_->AddToken(b));
+  EXPECT_FALSE(store_->AddToken(a));  // same id
+  const auto found = store_->FindTokenByHash(std::string(64, 'b'));
+  ASSERT_TRUE(found.has_value());
+  EXPECT_EQ(found->id, "tok_000000000002");
+  EXPECT_EQ(found->name, "arm");
+  EXPECT_EQ(found->role, "robot");
+  EXPECT_FALSE(found->created_at.empty());
+  EXPECT_TRUE(found->revoked_at.empty());
+  EXPECT_FALSE(store_->FindTokenByHash(std::string(64, 'c')).has_value());
+  const auto all = store_->ListTokens();
+  ASSERT_EQ(all.size(), 2u);
+  EXPECT_EQ(all[0].id, a.id);
+  EXPECT_EQ(all[1].id, b.id);
+  EXPECT_TRUE(store_->RevokeToken(b.id));
+  EXPECT_FALSE(store_->RevokeToken(b.id));
+  EXPECT_FALSE(store_->RevokeToken("tok_unknown"));
+  const auto revoked = store_->FindTokenByHash(std::string(64, 'b'));
+  ASSERT_TRUE(revoked.has_value());
+  EXPECT_FALSE(revoked->revoked_at.empty());
+  EXPECT_TRUE(store_->FindTokenByHash(a.hash)->revoked_at.empty());
+}
+
+TEST_P(StoreTest, AuditAppendsAndPagesByMaterial) {
+  std::vector<std::int64_t> ids;
+  for (int i = 0; i < 5; ++i) {
+    AuditEntry e;
+    e.actor = "tok_" + std::to_string(i);
+    e.role = "operator";
+    e.remote = "127.0.0.1";
+    e.action = "PUT /v1/materials/{id}";
+    e.material = i % 2 == 0 ? "even" : "odd";
+    e.detail = R"({"i":)" + std::to_string(i) + "}";
+    ids.push_back(store_->AppendAudit(e));
+  }
+  for (std::size_t i = 1; i < ids.size(); ++i) EXPECT_GT(ids[i], ids[i - 1]);
+  const auto all = store_->ListAudit(0, 100, "");
+  ASSERT_EQ(all.size(), 5u);
+  EXPECT_EQ(all[0].actor, "tok_0");
+  EXPECT_EQ(all[0].remote, "127.0.0.1");
+  EXPECT_EQ(all[0].action, "PUT /v1/materials/{id}");
+  EXPECT_EQ(all[4].detail, R"({"i":4})");
+  EXPECT_FALSE(all[0].at.empty());
+  const auto page = store_->ListAudit(ids[1], 2, "");
+  ASSERT_EQ(page.size(), 2u);
+  EXPECT_EQ(page[0].id, ids[2]);
+  EXPECT_EQ(page[1].id, ids[3]);
+  const auto even = store_->ListAudit(0, 100, "even");
+  ASSERT_EQ(even.size(), 3u);
+  for (const auto& e : even) EXPECT_EQ(e.material, "even");
+  EXPECT_TRUE(store_->ListAudit(ids[4], 100, "").empty());
+  // Audit outlives the material it names.
+  store_->PutMaterial(Material{"even", "E", "", {}, "", ""});
+  store_->DeleteMaterial("even");
+  EXPECT_EQ(store_->ListAudit(0, 100, "even").size(), 3u);
+}
+
 TEST(OpenStore, RejectsUnsupportedUrl) {
   EXPECT_THROW(OpenStore("postgresql://localhost/x"), std::invalid_argument);
   EXPECT_THROW(OpenStore(""), std::invalid_argument);

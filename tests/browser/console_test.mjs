@@ -22,7 +22,8 @@ const args = Object.fromEntries(
 const binDir = args.bin || process.env.FRICTIOND_BIN_DIR || 'build/bin';
 const artifacts = args.artifacts || 'build/test-artifacts';
 const chromium = process.env.CHROMIUM || '/usr/bin/chromium';
-const token = process.env.FRICTIOND_TEST_TOKEN || '';
+// The daemon's operator token (writes need one, docs/auth.md).
+const token = process.env.FRICTIOND_TEST_TOKEN || 'console-test-operator-0123456789abcdef';
 const started = Date.now();
 let daemonChild = null; // killed by the watchdog too
 
@@ -76,7 +77,7 @@ function strokeCsv({ strokes = 12, rate = 200, b0 = 0.9, b1 = 0.004, b2 = -0.06,
 // --- daemon --------------------------------------------------------------
 function startDaemon(tmp) {
   const bin = path.join(binDir, 'frictiond');
-  const child = spawn(bin, ['--db', path.join(tmp, 'console.db'), '--data', 'none', '--port', '0', '--lcm', 'none', '--bind', '127.0.0.1'], {
+  const child = spawn(bin, ['--db', path.join(tmp, 'console.db'), '--data', 'none', '--port', '0', '--lcm', 'none', '--bind', '127.0.0.1', '--bootstrap-token', token], {
     stdio: ['ignore', 'ignore', 'pipe'],
   });
   return new Promise((resolve, reject) => {

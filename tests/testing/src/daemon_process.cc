@@ -157,6 +157,12 @@ std::string DaemonProcess::ReadLog() const {
 
 std::unique_ptr<httplib::Client> DaemonProcess::MakeClient(
     double read_timeout_s, bool keep_alive) const {
+  return MakeClientWithToken(
+      options_.operator_token, read_timeout_s, keep_alive);
+}
+
+std::unique_ptr<httplib::Client> DaemonProcess::MakeClientWithToken(
+    const std::string& token, double read_timeout_s, bool keep_alive) const {
   auto client = std::make_unique<httplib::Client>(options_.bind, port_);
   client->set_connection_timeout(2, 0);
   const auto whole = static_cast<time_t>(read_timeout_s);
@@ -165,6 +171,7 @@ std::unique_ptr<httplib::Client> DaemonProcess::MakeClient(
   client->set_read_timeout(whole, micros);
   client->set_write_timeout(whole > 0 ? whole : 1, 0);
   client->set_keep_alive(keep_alive);
+  if (!token.empty()) client->set_bearer_token_auth(token);
   return client;
 }
 
@@ -199,6 +206,8 @@ bool DaemonProcess::SpawnAndWait(std::string* why) {
   if (options_.max_body_mb > 0)
     args.insert(args.end(),
                 {"--max-body-mb", std::to_string(options_.max_body_mb)});
+  if (!options_.operator_token.empty())
+    args.insert(args.end(), {"--bootstrap-token", options_.operator_token});
   args.insert(
       args.end(), options_.extra_args.begin(), options_.extra_args.end());
   std::vector<char*> argv;

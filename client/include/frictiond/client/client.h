@@ -53,6 +53,9 @@ struct ClientOptions {
   std::string fingertip = "default";  ///< default fingertip of requests
   std::string robot;                  ///< sent as X-Robot-Id (may be empty)
   double timeout_s = 5.0;             ///< connect/read timeout
+  /// API token secret, sent as "Authorization: Bearer <token>" when not
+  /// empty (docs/auth.md).
+  std::string token;
   /// Directory of the offline model cache (docs/offline.md): every model
   /// fetched is kept there, and served (stale) when no daemon answers.
   /// "" = no cache. The CLI's --cache-dir / FRICTIOND_CACHE_DIR.

@@ -7,6 +7,7 @@
 #include <memory>
 #include <string>
 
+#include "frictiond/server/auth.h"
 #include "frictiond/server/http_server.h"
 #include "frictiond/server/lcm_endpoint.h"
 #include "frictiond/server/library.h"
@@ -40,8 +41,16 @@ struct DaemonConfig {
   /// @throws std::invalid_argument naming the file or robot and the rule.
   std::map<std::string, std::string> LoadLcmKeys() const;
 
+  /// Reader routes answer callers without a token; honoured only when
+  /// `bind` is a loopback address (docs/auth.md).
+  bool open_reads = true;
+  /// Secret of the operator token created on the first start (no tokens in
+  /// the store); empty = generate one and print it to stdout.
+  std::string bootstrap_token;
+
   /// Reads a JSON config file:
-  /// {"db","port","bind","data","lcm","max_body_mb","threads", "plan":
+  /// {"db","port","bind","data","lcm","max_body_mb","threads","open_reads",
+  /// "bootstrap_token", "plan":
   /// {"fn_min_n","fn_max_n","v_min_mm_s","v_max_mm_s","max_duration_s","min_span_pct"},
   /// "lcm_keys": {"robot": "hex"}, "lcm_keys_file", "lcm_allow_unsigned",
   /// "lcm_max_skew_s"}.
@@ -73,11 +82,14 @@ class Daemon {
 
   FrictionLibrary& library();
   HttpServer& http();
+  /// Token checks, route policy and audit log (valid after Start()).
+  Authenticator& auth();
   const DaemonConfig& config() const { return config_; }
 
  private:
   DaemonConfig config_;
   std::unique_ptr<FrictionLibrary> library_;
+  std::unique_ptr<Authenticator> auth_;  ///< outlives http_ (its hooks)
   std::unique_ptr<HttpServer> http_;
   std::unique_ptr<LcmEndpoint> lcm_;  ///< null when lcm_url is "none"
 };

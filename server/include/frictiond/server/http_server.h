@@ -29,6 +29,10 @@ struct HttpRequest {
       params;  ///< {captures} of the route pattern, in order
   std::multimap<std::string, std::string> query;  ///< decoded query parameters
   std::multimap<std::string, std::string> headers;
+  /// Set by the authorizer (HttpServer::SetAuthorizer): the caller's token
+  /// id and role; both empty for an anonymous (or unchecked) request.
+  std::string actor;
+  std::string role;
 
   /// First value of a query parameter.
   std::optional<std::string> Query(const std::string& name) const;
@@ -59,6 +63,23 @@ struct HttpResponse {
 
 using HttpHandler = std::function<HttpResponse(const HttpRequest&)>;
 
+/// Called by Dispatch for a matched route before its handler, with the
+/// route's pattern. Returning a response rejects the request (the handler
+/// does not run); returning nullopt admits it. May fill request.actor/role.
+using HttpAuthorizer = std::function<std::optional<HttpResponse>(
+    HttpRequest& request, const std::string& pattern)>;
+/// Called by Dispatch after a handler ran (or the authorizer rejected),
+/// with the route's pattern and the response (e.g. for an audit log).
+using HttpObserver = std::function<void(const HttpRequest& request,
+                                        const std::string& pattern,
+                                        const HttpResponse& response)>;
+
+/// A registered route.
+struct RouteKey {
+  std::string method;
+  std::string pattern;
+};
+
 /// Server options.
 struct HttpOptions {
   std::size_t max_body_bytes = 16u << 20;  ///< larger bodies get 413
@@ -83,6 +104,13 @@ class HttpServer {
   void Route(const std::string& method,
              const std::string& pattern,
              HttpHandler handler);
+
+  /// Every registered (method, pattern), in registration order.
+  std::vector<RouteKey> Routes() const;
+
+  /// Installs the authorizer and observer (either may be empty). Call
+  /// before Serve(). Without an authorizer every route is open.
+  void SetAuthorizer(HttpAuthorizer authorizer, HttpObserver observer = {});
 
   /// Binds to address:port (port 0 picks a free one).
   /// @return the bound port. @throws std::runtime_error when binding fails.

@@ -100,6 +100,28 @@ struct UploadCommit {
   bool material_created = false;
 };
 
+/// An API token. Only a hash of its secret is stored.
+struct TokenRecord {
+  std::string id;          ///< public id ("tok_" + 12 hex), shown in lists
+  std::string name;        ///< label given at creation
+  std::string role;        ///< reader | robot | operator
+  std::string hash;        ///< lowercase hex SHA-256 of the secret
+  std::string created_at;  ///< set by the store
+  std::string revoked_at;  ///< empty while the token is valid
+};
+
+/// One audit log entry: who changed what, when, from where.
+struct AuditEntry {
+  std::int64_t id = 0;   ///< assigned by the store, increasing
+  std::string at;        ///< set by the store
+  std::string actor;     ///< token id, "lcm:<robot>" or "system"
+  std::string role;      ///< role of the actor ("" for system)
+  std::string remote;    ///< remote address ("" when not from the network)
+  std::string action;    ///< e.g. "PUT /v1/materials/{id}"
+  std::string material;  ///< affected material ("" when none)
+  std::string detail;    ///< JSON text (version, stroke id, status, ...)
+};
+
 /// Storage interface. Copy: no; move: no (held through unique_ptr).
 class Store {
  public:
@@ -169,6 +191,24 @@ class Store {
   /// Creates or replaces a robot description. @return true when created.
   virtual bool PutRobot(const RobotRecord& robot) = 0;
   virtual std::optional<RobotRecord> GetRobot(const std::string& id) = 0;
+
+  // --- tokens and audit -----------------------------------------------------
+  /// Stores a new token. @return false when a token with this id exists.
+  virtual bool AddToken(const TokenRecord& token) = 0;
+  /// The token whose hash this is (revoked ones too), or nullopt.
+  virtual std::optional<TokenRecord> FindTokenByHash(
+      const std::string& hash) = 0;
+  /// All tokens, oldest first.
+  virtual std::vector<TokenRecord> ListTokens() = 0;
+  /// Marks a token revoked. @return false when unknown or already revoked.
+  virtual bool RevokeToken(const std::string& id) = 0;
+  /// Appends an audit entry. @return its id.
+  virtual std::int64_t AppendAudit(const AuditEntry& entry) = 0;
+  /// Entries with id > after_id, oldest first, at most `limit`; a non-empty
+  /// `material` keeps that material's entries only.
+  virtual std::vector<AuditEntry> ListAudit(std::int64_t after_id,
+                                            int limit,
+                                            const std::string& material) = 0;
 
   // --- housekeeping ----------------------------------------------------------
   /// Schema version (number of applied migrations).

@@ -84,6 +84,10 @@ struct DaemonOptions {
   int port = 0;                    ///< --port; 0 picks a free port
   int threads = 0;                 ///< --threads (0: daemon default)
   int max_body_mb = 0;             ///< --max-body-mb (0: daemon default)
+  /// --bootstrap-token: the secret of the operator token created on the
+  /// first start of an empty database ("" = let the daemon generate one).
+  /// MakeClient() sends it as the bearer token.
+  std::string operator_token = "test-operator-0123456789abcdef0123456789abcdef";
   std::vector<std::string> extra_args;  ///< appended verbatim
   std::string binary;    ///< path of frictiond ("" = BinaryPath("frictiond"))
   std::string log_path;  ///< stdout+stderr of the daemon ("" = db + ".log")
@@ -131,9 +135,15 @@ class DaemonProcess {
   std::string ReadLog() const;
 
   /// An HTTP client for this daemon (connection timeout 2 s, read timeout
-  /// `read_timeout_s`). Keep-alive is off unless `keep_alive`.
+  /// `read_timeout_s`). Keep-alive is off unless `keep_alive`. It sends
+  /// options().operator_token as "Authorization: Bearer" when not empty.
   std::unique_ptr<httplib::Client> MakeClient(double read_timeout_s = 30.0,
                                               bool keep_alive = false) const;
+  /// Like MakeClient() but with the bearer token `token` ("" = none).
+  std::unique_ptr<httplib::Client> MakeClientWithToken(
+      const std::string& token,
+      double read_timeout_s = 30.0,
+      bool keep_alive = false) const;
 
  private:
   bool SpawnAndWait(std::string* why);
