@@ -17,8 +17,8 @@
 #include <signal.h>
 #include <sys/wait.h>
 
+#include "frictiond/crypto/hmac.h"
 #include "frictiond/estimators/stroke_csv.h"
-#include "frictiond/proto/crypto.h"
 #include "frictiond/server/daemon.h"
 #include "frictiond/testing/daemon_process.h"
 #include "frictiond/testing/stroke_simulator.h"

@@ -74,6 +74,7 @@ class ClientCacheTest : public ::testing::Test {
     ClientOptions o;
     o.base_url = BaseUrl();
     o.timeout_s = 60;
+    o.token = options_.operator_token;  // writes need a token (docs/auth.md)
     return FrictionClient(o)
         .UploadStrokes(material, SimulatedCsv(seed, b0))
         .version;

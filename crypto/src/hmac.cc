@@ -6,6 +6,7 @@
 #include <openssl/evp.h>
 #include <openssl/hmac.h>
 #include <openssl/rand.h>
+#include <openssl/sha.h>
 
 namespace frictiond {
 
@@ -77,5 +78,15 @@ std::string RandomBytes(std::size_t n) {
     throw std::runtime_error("RAND_bytes: libcrypto has no randomness");
   return out;
 }
+
+std::string Sha256(const std::string& data) {
+  unsigned char md[SHA256_DIGEST_LENGTH];
+  SHA256(reinterpret_cast<const unsigned char*>(data.data()), data.size(), md);
+  return std::string(reinterpret_cast<const char*>(md), sizeof md);
+}
+
+std::string Sha256Hex(const std::string& data) { return ToHex(Sha256(data)); }
+
+std::string RandomHex(std::size_t n) { return ToHex(RandomBytes(n)); }
 
 }  // namespace frictiond

@@ -6,7 +6,7 @@
 #include <cctype>
 #include <iostream>
 
-#include "frictiond/proto/crypto.h"
+#include "frictiond/crypto/hmac.h"
 #include "frictiond/server/request_error.h"
 
 namespace frictiond {

@@ -187,7 +187,7 @@ async function main() {
     await input.uploadFile(badCsv);
     const [badRes] = await Promise.all([page.waitForResponse((r) => r.url().includes(`/v1/materials/${id}/strokes`)), page.click('#upload-csv')]);
     // The same file sent by the test itself: the page must show this body.
-    const direct = await fetch(`${url}/v1/materials/${id}/strokes`, { method: 'POST', headers: { 'Content-Type': 'text/csv' }, body: fs.readFileSync(badCsv) });
+    const direct = await fetch(`${url}/v1/materials/${id}/strokes`, { method: 'POST', headers: { 'Content-Type': 'text/csv', Authorization: 'Bearer ' + token }, body: fs.readFileSync(badCsv) });
     const badBody = await direct.text();
     await page.waitForFunction(() => !document.getElementById('upload-error').hidden);
     const shown = await page.$eval('#upload-error', (e) => e.textContent);

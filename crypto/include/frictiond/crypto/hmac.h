@@ -1,6 +1,7 @@
 #pragma once
 /// @file
-/// HMAC-SHA256 and helpers over OpenSSL libcrypto. Byte strings are
+/// SHA-256, HMAC-SHA256 and helpers over OpenSSL libcrypto, shared by API
+/// tokens (stored as SHA-256 hashes) and signed LCM writes. Byte strings are
 /// std::string (any bytes, not only text).
 
 #include <cstddef>
@@ -26,5 +27,12 @@ bool ConstantTimeEqual(const std::string& a, const std::string& b);
 
 /// `n` bytes from the OpenSSL CSPRNG. @throws std::runtime_error on failure.
 std::string RandomBytes(std::size_t n);
+
+/// SHA-256 of `data` (FIPS 180-4): 32 raw bytes.
+std::string Sha256(const std::string& data);
+/// SHA-256 of `data` as 64 lower-case hex digits.
+std::string Sha256Hex(const std::string& data);
+/// `n` random bytes (RandomBytes) as lower-case hex (2n digits).
+std::string RandomHex(std::size_t n);
 
 }  // namespace frictiond
