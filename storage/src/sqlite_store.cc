@@ -37,6 +37,10 @@ std::string NowIso8601() {
 }
 
 namespace internal {
+#ifdef FRICTIOND_HAVE_POSTGRES
+/// The PostgreSQL back end (pg_store.cc).
+std::unique_ptr<Store> OpenPgStore(const std::string& url);
+#endif
 namespace {
 
 // Schema migrations; index i brings the schema from version i to i + 1.
@@ -72,6 +76,22 @@ CREATE TABLE images(
     R"sql(
 CREATE TABLE robots(
   id TEXT PRIMARY KEY, json TEXT NOT NULL, created_at TEXT NOT NULL, updated_at TEXT NOT NULL);
+)sql",
+    // Tokens and audit log (minimal version; see the section "tokens and
+    // audit" below).
+    R"sql(
+CREATE TABLE tokens(
+  id TEXT PRIMARY KEY, name TEXT NOT NULL, role TEXT NOT NULL,
+  hash TEXT NOT NULL UNIQUE, created_at TEXT NOT NULL, revoked_at TEXT NOT NULL DEFAULT '');
+CREATE TABLE audit(
+  id INTEGER PRIMARY KEY AUTOINCREMENT, at TEXT NOT NULL, actor TEXT NOT NULL,
+  role TEXT NOT NULL, remote TEXT NOT NULL, action TEXT NOT NULL,
+  material TEXT NOT NULL, detail TEXT NOT NULL);
+CREATE INDEX audit_material ON audit(material, id);
+)sql",
+    // Identification jobs claimed by one worker (ClaimJob).
+    R"sql(
+ALTER TABLE jobs ADD COLUMN claimed_by TEXT NOT NULL DEFAULT '';
 )sql",
 };
 
@@ -586,6 +606,126 @@ class SqliteStore final : public Store {
     return out;
   }
 
+  std::optional<IdentificationJob> ClaimJob(
+      std::int64_t id, const std::string& worker) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    Stmt(std::string("UPDATE jobs SET claimed_by=?, updated_at=? WHERE id=? "
+                     "AND (claimed_by='' OR claimed_by=?) AND state IN ") +
+         kOpenStates)
+        .Reset()
+        .Bind(worker)
+        .Bind(NowIso8601())
+        .Bind(id)
+        .Bind(worker)
+        .Run();
+    if (sqlite3_changes(db_) == 0) return std::nullopt;
+    return GetJobLocked(id);
+  }
+
+  // --- tokens and audit (minimal SQLite version) ---------------------------
+  bool AddToken(const TokenRecord& t) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    Transaction tx(this);
+    auto& exists = Stmt("SELECT 1 FROM tokens WHERE id=?").Reset().Bind(t.id);
+    const bool existed = exists.Step();
+    exists.Reset();
+    if (existed) return false;
+    Stmt(
+        "INSERT INTO tokens(id,name,role,hash,created_at,revoked_at) "
+        "VALUES(?,?,?,?,?,'')")
+        .Reset()
+        .Bind(t.id)
+        .Bind(t.name)
+        .Bind(t.role)
+        .Bind(t.hash)
+        .Bind(NowIso8601())
+        .Run();
+    tx.Commit();
+    return true;
+  }
+
+  std::optional<TokenRecord> FindTokenByHash(const std::string& hash) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto& s = Stmt(
+                  "SELECT id,name,role,hash,created_at,revoked_at FROM tokens "
+                  "WHERE hash=?")
+                  .Reset()
+                  .Bind(hash);
+    std::optional<TokenRecord> out;
+    if (s.Step())
+      out = TokenRecord{
+          s.Text(0), s.Text(1), s.Text(2), s.Text(3), s.Text(4), s.Text(5)};
+    s.Reset();
+    return out;
+  }
+
+  std::vector<TokenRecord> ListTokens() override {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto& s = Stmt(
+                  "SELECT id,name,role,hash,created_at,revoked_at FROM tokens "
+                  "ORDER BY created_at, id")
+                  .Reset();
+    std::vector<TokenRecord> out;
+    while (s.Step())
+      out.push_back(TokenRecord{
+          s.Text(0), s.Text(1), s.Text(2), s.Text(3), s.Text(4), s.Text(5)});
+    return out;
+  }
+
+  bool RevokeToken(const std::string& id) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    Stmt("UPDATE tokens SET revoked_at=? WHERE id=? AND revoked_at=''")
+        .Reset()
+        .Bind(NowIso8601())
+        .Bind(id)
+        .Run();
+    return sqlite3_changes(db_) > 0;
+  }
+
+  std::int64_t AppendAudit(const AuditEntry& e) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    Stmt(
+        "INSERT INTO audit(at,actor,role,remote,action,material,detail) "
+        "VALUES(?,?,?,?,?,?,?)")
+        .Reset()
+        .Bind(NowIso8601())
+        .Bind(e.actor)
+        .Bind(e.role)
+        .Bind(e.remote)
+        .Bind(e.action)
+        .Bind(e.material)
+        .Bind(e.detail)
+        .Run();
+    return sqlite3_last_insert_rowid(db_);
+  }
+
+  std::vector<AuditEntry> ListAudit(std::int64_t after_id,
+                                    int limit,
+                                    const std::string& material) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto& s = Stmt(
+                  "SELECT id,at,actor,role,remote,action,material,detail FROM "
+                  "audit WHERE id>? AND (?='' OR material=?) ORDER BY id "
+                  "LIMIT ?")
+                  .Reset()
+                  .Bind(after_id)
+                  .Bind(material)
+                  .Bind(material)
+                  .Bind(static_cast<std::int64_t>(limit < 0 ? 0 : limit));
+    std::vector<AuditEntry> out;
+    while (s.Step())
+      out.push_back(AuditEntry{s.Int(0),
+                               s.Text(1),
+                               s.Text(2),
+                               s.Text(3),
+                               s.Text(4),
+                               s.Text(5),
+                               s.Text(6),
+                               s.Text(7)});
+    return out;
+  }
+  // --- end of tokens and audit ---------------------------------------------
+
   int SchemaVersion() override {
     std::lock_guard<std::mutex> lock(mu_);
     return SchemaVersionLocked();
@@ -767,9 +907,14 @@ class SqliteStore final : public Store {
 
 std::unique_ptr<Store> OpenStore(const std::string& url) {
   if (url.rfind("postgresql://", 0) == 0 || url.rfind("postgres://", 0) == 0) {
+#ifdef FRICTIOND_HAVE_POSTGRES
+    return internal::OpenPgStore(url);
+#else
     throw std::invalid_argument(
         "--db " + url +
-        ": the PostgreSQL back end is not built into this frictiond");
+        ": the PostgreSQL back end is not built into this frictiond "
+        "(FRICTIOND_WITH_POSTGRES=OFF or libpq missing)");
+#endif
   }
   std::string path = url;
   if (path.rfind("sqlite://", 0) == 0) path = path.substr(9);

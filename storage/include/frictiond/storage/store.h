@@ -2,7 +2,8 @@
 /// @file
 /// The persistent friction library. `Store` is the interface the daemon
 /// talks to; OpenStore() picks a back end from a URL (a SQLite file path
-/// today; `postgresql://...` is reserved for the fleet back end).
+/// or `sqlite://PATH`; `postgresql://...` for the fleet back end, several
+/// daemons sharing one library, see docs/fleet.md).
 ///
 /// Guarantees of every back end:
 /// - Each mutating call is one transaction: it either happens completely or
@@ -12,8 +13,10 @@
 /// - Thread-safe: calls may come from any thread.
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -100,6 +103,28 @@ struct UploadCommit {
   bool material_created = false;
 };
 
+/// An API token. Only a hash of its secret is stored.
+struct TokenRecord {
+  std::string id;          ///< public id ("tok_" + 12 hex), shown in lists
+  std::string name;        ///< label given at creation
+  std::string role;        ///< reader | robot | operator
+  std::string hash;        ///< lowercase hex SHA-256 of the secret
+  std::string created_at;  ///< set by the store
+  std::string revoked_at;  ///< empty while the token is valid
+};
+
+/// One audit log entry: who changed what, when, from where.
+struct AuditEntry {
+  std::int64_t id = 0;   ///< assigned by the store, increasing
+  std::string at;        ///< set by the store
+  std::string actor;     ///< token id, "lcm:<robot>" or "system"
+  std::string role;      ///< role of the actor ("" for system)
+  std::string remote;    ///< remote address ("" when not from the network)
+  std::string action;    ///< e.g. "PUT /v1/materials/{id}"
+  std::string material;  ///< affected material ("" when none)
+  std::string detail;    ///< JSON text (version, stroke id, status, ...)
+};
+
 /// Storage interface. Copy: no; move: no (held through unique_ptr).
 class Store {
  public:
@@ -160,6 +185,14 @@ class Store {
   virtual std::optional<IdentificationJob> GetJob(std::int64_t id) = 0;
   /// Jobs, newest first; `open_only` keeps requested/stroking/enough_coverage.
   virtual std::vector<IdentificationJob> ListJobs(bool open_only) = 0;
+  /// Claims an open job for `worker` so that only one daemon of a fleet acts
+  /// on it: succeeds when the job is open and unclaimed (or already claimed
+  /// by `worker`), atomically against other daemons (PostgreSQL: SELECT ...
+  /// FOR UPDATE SKIP LOCKED; SQLite: a conditional UPDATE).
+  /// @return the claimed job, or nullopt when unknown, closed or claimed by
+  /// another worker.
+  virtual std::optional<IdentificationJob> ClaimJob(
+      std::int64_t id, const std::string& worker) = 0;
 
   // --- images ---------------------------------------------------------------
   virtual std::int64_t AddImage(const ImageRecord& image) = 0;
@@ -170,6 +203,24 @@ class Store {
   virtual bool PutRobot(const RobotRecord& robot) = 0;
   virtual std::optional<RobotRecord> GetRobot(const std::string& id) = 0;
 
+  // --- tokens and audit -----------------------------------------------------
+  /// Stores a new token. @return false when a token with this id exists.
+  virtual bool AddToken(const TokenRecord& token) = 0;
+  /// The token whose hash this is (revoked ones too), or nullopt.
+  virtual std::optional<TokenRecord> FindTokenByHash(
+      const std::string& hash) = 0;
+  /// All tokens, oldest first.
+  virtual std::vector<TokenRecord> ListTokens() = 0;
+  /// Marks a token revoked. @return false when unknown or already revoked.
+  virtual bool RevokeToken(const std::string& id) = 0;
+  /// Appends an audit entry. @return its id.
+  virtual std::int64_t AppendAudit(const AuditEntry& entry) = 0;
+  /// Entries with id > after_id, oldest first, at most `limit`; a non-empty
+  /// `material` keeps that material's entries only.
+  virtual std::vector<AuditEntry> ListAudit(std::int64_t after_id,
+                                            int limit,
+                                            const std::string& material) = 0;
+
   // --- housekeeping ----------------------------------------------------------
   /// Schema version (number of applied migrations).
   virtual int SchemaVersion() = 0;
@@ -178,15 +229,37 @@ class Store {
   /// Runs the back end's consistency check; empty string when fine.
   virtual std::string CheckIntegrity() = 0;
 
+  // --- change notification (fleet) ------------------------------------------
+  /// Called from a back-end thread after another process committed a write
+  /// to the shared database: `material` and `fingertip` name the changed
+  /// pair (`fingertip` empty: every pair of the material; both empty: anything
+  /// may have changed, e.g. after a reconnect). The PostgreSQL back end
+  /// delivers these through LISTEN/NOTIFY (channel frictiond_changes); the
+  /// SQLite back end is single-process and never calls it (no-op).
+  using ChangeListener = std::function<void(const std::string& material,
+                                            const std::string& fingertip)>;
+  /// Sets (or clears, with an empty function) the listener. Set it once,
+  /// before serving.
+  virtual void SetChangeListener(ChangeListener listener) { (void)listener; }
+
  protected:
   Store() = default;
 };
 
 /// Opens a store: a SQLite database file (created if missing; ":memory:" for
-/// a private in-memory database).
+/// a private in-memory database), or a PostgreSQL connection URI
+/// ("postgresql://user@host:port/db?..."; needs FRICTIOND_WITH_POSTGRES).
 /// @throws std::invalid_argument for an unsupported URL,
 /// std::runtime_error when the database cannot be opened or migrated.
 std::unique_ptr<Store> OpenStore(const std::string& url);
+
+/// Thrown by a back end whose database server cannot be reached (connection
+/// refused or lost). The call had no effect, or its transaction was not
+/// acknowledged; retrying later may succeed. The HTTP layer answers 503.
+class StoreUnavailable : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
 
 /// Current UTC time, ISO-8601 with milliseconds ("2026-11-22T21:05:07.123Z").
 std::string NowIso8601();
