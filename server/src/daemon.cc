@@ -71,7 +71,8 @@ void DaemonConfig::LoadFile(const std::string& path) {
 
 void DaemonConfig::Validate() const {
   if (db.empty())
-    throw std::invalid_argument("--db: empty (give a SQLite file path)");
+    throw std::invalid_argument(
+        "--db: empty (give a SQLite file path or a postgresql:// URL)");
   if (!(port >= 0 && port <= 65535))
     throw std::invalid_argument("--port " + std::to_string(port) +
                                 ": must be in 0..65535");
@@ -128,6 +129,9 @@ int Daemon::Start() {
   RecognizeImageFn recognize = RegisterRecognitionRoutes(*http_, *library_);
   RegisterExportRoutes(*http_, *library_);
   const int port = http_->Bind(config_.bind, config_.port);
+  // Fleet: writes of other daemons on a shared database (PostgreSQL)
+  // invalidate this daemon's cache and are broadcast on LCM.
+  library_->WatchStoreChanges();
   if (config_.lcm_url != "none") {
     LcmEndpointOptions lo_lcm;
     lo_lcm.url = config_.lcm_url;

@@ -14,10 +14,12 @@
 #include <iostream>
 #include <map>
 #include <mutex>
+#include <random>
 #include <set>
 #include <thread>
 
 #include <lcm/lcm-cpp.hpp>
+#include <unistd.h>
 
 #include "frictiond/coverage_progress_v1.hpp"
 #include "frictiond/error_v1.hpp"
@@ -138,6 +140,15 @@ class LcmPublisher {
   std::mutex mu_;
   lcm::LCM* lcm_;
 };
+
+/// "host:pid:random" naming this daemon in job claims.
+std::string MakeWorkerId() {
+  char host[256] = {0};
+  if (::gethostname(host, sizeof host - 1) != 0) host[0] = '\0';
+  std::random_device rd;
+  return std::string(host) + ":" + std::to_string(::getpid()) + ":" +
+         std::to_string(rd() % 1000000);
+}
 
 class LcmEndpointImpl {
  public:
@@ -429,6 +440,12 @@ class LcmEndpointImpl {
                     "fingertip = '" + fingertip.substr(0, 64) + "' (job " +
                         std::to_string(job->id) + " is for '" + job->fingertip +
                         "')");
+    // In a fleet every daemon hears the chunks; the one that claims the job
+    // (once, in the shared store) acts on it, the others stay silent.
+    if (!claimed_.count(job->id)) {
+      if (!library_.store().ClaimJob(job->id, worker_id_)) return;
+      claimed_.insert(job->id);
+    }
     JobProgress& jp = jobs_[job->id];
     if (jp.done_strokes.count(m.stroke)) return;  // late duplicate
     if (m.stroke >= options_.max_strokes_per_job)
@@ -706,6 +723,9 @@ class LcmEndpointImpl {
   std::shared_ptr<LcmPublisher> publisher_;
   StrokeReassembler reassembler_;
   std::map<std::int64_t, JobProgress> jobs_;
+  std::set<std::int64_t> claimed_;  // jobs this endpoint claimed
+  // Worker id for ClaimJob: host, process and a random part.
+  const std::string worker_id_ = MakeWorkerId();
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };

@@ -831,6 +831,16 @@ class PgStore final : public Store {
     pool_cv_.notify_one();
   }
 
+  /// Closes the idle connections (after one was found dead: the server
+  /// restarted, so the next call connects afresh).
+  void DropIdle() {
+    std::lock_guard<std::mutex> lock(pool_mu_);
+    for (PGconn* c : idle_) PQfinish(c);
+    open_ -= static_cast<int>(idle_.size());
+    idle_.clear();
+    pool_cv_.notify_all();
+  }
+
   /// Runs a read; a pooled connection that turns out dead (server
   /// restarted meanwhile) is replaced once by a fresh one.
   template <typename F>
@@ -841,6 +851,7 @@ class PgStore final : public Store {
         return f(lease.get());
       } catch (const StoreUnavailable&) {
         if (lease.fresh() || attempt > 0) throw;
+        DropIdle();  // the others are as dead as this one
       }
     }
   }
@@ -860,7 +871,11 @@ class PgStore final : public Store {
         tx.Commit();
         return out;
       } catch (const StoreUnavailable&) {
-        if (lease.fresh() || attempt > 0 || tx.commit_sent()) throw;
+        if (lease.fresh() || attempt > 0 || tx.commit_sent()) {
+          DropIdle();
+          throw;
+        }
+        DropIdle();  // the others are as dead as this one
       }
     }
   }

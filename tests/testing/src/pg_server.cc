@@ -11,7 +11,6 @@
 
 #include <fcntl.h>
 #include <grp.h>
-#include <gtest/gtest.h>
 #include <pwd.h>
 #include <signal.h>
 #include <sys/prctl.h>
@@ -88,17 +87,6 @@ std::string PgServer::BinDir() {
     if (::access((dir + "/" + b).c_str(), X_OK) != 0) return "";
   }
   return dir;
-}
-
-bool PgServer::RequireOrSkip() {
-  if (!BinDir().empty()) return true;
-  if (Env("FRICTIOND_ALLOW_NO_POSTGRES") == "1") return false;
-  ADD_FAILURE() << "PostgreSQL 15 server binaries not found in "
-                   "/usr/lib/postgresql/15/bin (or $FRICTIOND_PG_BIN): "
-                   "install Debian package 'postgresql' "
-                   "(./deploy/install-deps.sh), or set "
-                   "FRICTIOND_ALLOW_NO_POSTGRES=1 to skip these tests";
-  return false;
 }
 
 int PgServer::Run(const std::vector<std::string>& argv,
