@@ -202,10 +202,12 @@ int Main(int argc, char** argv) {
   prop.baseline_name = "goal (1 s)";
   prop.lower_is_better = true;
   prop.goal = kPropagationGoal;
+  char p50[32];
+  std::snprintf(p50, sizeof p50, "%.2f", pct(0.5));
   prop.note = std::to_string(rounds) +
               " uploads via daemon A; time from A's 201 until daemon B "
               "serves the version (B polled every ms); p50 " +
-              std::to_string(pct(0.5)) + " ms";
+              std::string(p50) + " ms";
   PrintBenchLine(prop);
   return fleet_errors == 0 ? 0 : 1;
 }

@@ -35,7 +35,7 @@ if [ -z "$url" ]; then
     as=(runuser -u postgres --)
   fi
   pg_port=${PG_PORT:-55432}
-  "${as[@]}" "$pgbin/initdb" -D "$tmp/data" -U postgres -A trust -E UTF8 --locale=C --no-instructions >/dev/null
+  "${as[@]}" "$pgbin/initdb" -D "$tmp/data" -U postgres -A trust -E UTF8 --locale=C --no-instructions --no-sync >/dev/null
   "${as[@]}" "$pgbin/postgres" -D "$tmp/data" -p "$pg_port" -c listen_addresses=127.0.0.1 \
     -c unix_socket_directories="$tmp" -c fsync=on >"$tmp/postgres.log" 2>&1 &
   pids+=($!)

@@ -20,6 +20,7 @@
 #include <signal.h>
 
 #include "frictiond/estimators/stroke_csv.h"
+#include "frictiond/storage/store.h"
 #include "frictiond/testing/daemon_process.h"
 #include "frictiond/testing/pg_server.h"
 #include "frictiond/testing/stroke_simulator.h"
@@ -46,11 +47,23 @@ int VersionOf(const httplib::Result& res) {
   return j.is_object() ? j.value("version", 0) : 0;
 }
 
+/// False when this build has no PostgreSQL back end
+/// (FRICTIOND_WITH_POSTGRES=OFF or no libpq): its tests are skipped then.
+bool PgBackendBuilt() {
+  try {
+    OpenStore("postgresql://postgres@127.0.0.1:1/x?connect_timeout=1");
+  } catch (const std::invalid_argument&) {
+    return false;
+  } catch (const std::exception&) {
+  }
+  return true;
+}
+
 /// One server for the suite (initdb is slow); a fresh database per test.
 class FleetTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    if (PgServer::BinDir().empty()) return;
+    if (PgServer::BinDir().empty() || !PgBackendBuilt()) return;
     shared_ = new PgServer();
     shared_->Start();
   }
@@ -59,22 +72,12 @@ class FleetTest : public ::testing::Test {
     shared_ = nullptr;
   }
   void SetUp() override {
+    if (!PgBackendBuilt()) GTEST_SKIP() << "built without PostgreSQL";
     if (!PgServer::RequireOrSkip()) GTEST_SKIP() << "no PostgreSQL";
     static int n = 0;
     url_ = shared_->CreateDatabase("fleet" + std::to_string(++n));
   }
-  void TearDown() override {
-    daemons_.clear();
-    own_.reset();
-  }
-  /// A private server (for tests that stop it); later daemons use it.
-  PgServer& OwnServer() {
-    own_ = std::make_unique<PgServer>();
-    own_->Start();
-    url_ = own_->CreateDatabase("fleet");
-    return *own_;
-  }
-
+  void TearDown() override { daemons_.clear(); }
   DaemonProcess& StartDaemon() {
     DaemonOptions o;
     o.db = url_;
@@ -97,7 +100,6 @@ class FleetTest : public ::testing::Test {
 
   static PgServer* shared_;
   TempDir dir_{"fleet_test"};
-  std::unique_ptr<PgServer> own_;
   std::string url_;
   std::vector<std::unique_ptr<DaemonProcess>> daemons_;
 };
@@ -173,7 +175,8 @@ TEST_F(FleetTest, ConcurrentUploadsThroughTwoDaemonsLoseNoVersion) {
 }
 
 TEST_F(FleetTest, PostgresStoppedMidUploadThenBack) {
-  PgServer& pg = OwnServer();
+  // The shared server: stopped here, running again at the end.
+  PgServer& pg = *shared_;
   DaemonProcess& a = StartDaemon();
   ASSERT_EQ(Upload(a, "cork", 1)->status, 201);
   auto c = a.MakeClient(10.0);

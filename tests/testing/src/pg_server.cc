@@ -156,7 +156,10 @@ void PgServer::Start() {
                         "-E",
                         "UTF8",
                         "--locale=C",
-                        "--no-instructions"},
+                        "--no-instructions",
+                        // The server runs with fsync on; the initial files
+                        // of a throw-away cluster need not be synced.
+                        "--no-sync"},
                        &out);
     if (rc != 0)
       throw std::runtime_error("PgServer: initdb failed (exit " +
@@ -260,34 +263,45 @@ std::string PgServer::Url(const std::string& db) const {
 }
 
 std::string PgServer::Psql(const std::string& sql, const std::string& db) {
+  return Psql(std::vector<std::string>{sql}, db);
+}
+
+std::string PgServer::Psql(const std::vector<std::string>& commands,
+                           const std::string& db) {
+  std::vector<std::string> argv = {BinDir() + "/psql",
+                                   "-X",
+                                   "-q",
+                                   "-A",
+                                   "-t",
+                                   "-v",
+                                   "ON_ERROR_STOP=1",
+                                   "-h",
+                                   "127.0.0.1",
+                                   "-p",
+                                   std::to_string(port_),
+                                   "-U",
+                                   "postgres",
+                                   "-d",
+                                   db};
+  std::string all;
+  for (const std::string& c : commands) {
+    argv.push_back("-c");
+    argv.push_back(c);
+    all += (all.empty() ? "" : "; ") + c;
+  }
   std::string out;
-  const int rc = Run({BinDir() + "/psql",
-                      "-X",
-                      "-q",
-                      "-A",
-                      "-t",
-                      "-v",
-                      "ON_ERROR_STOP=1",
-                      "-h",
-                      "127.0.0.1",
-                      "-p",
-                      std::to_string(port_),
-                      "-U",
-                      "postgres",
-                      "-d",
-                      db,
-                      "-c",
-                      sql},
-                     &out);
+  const int rc = Run(argv, &out);
   if (rc != 0)
-    throw std::runtime_error("PgServer: psql failed on '" + sql +
+    throw std::runtime_error("PgServer: psql failed on '" + all +
                              "': " + Tail(out, 1000));
   return out;
 }
 
 std::string PgServer::CreateDatabase(const std::string& name) {
-  Psql("DROP DATABASE IF EXISTS \"" + name + "\" WITH (FORCE)");
-  Psql("CREATE DATABASE \"" + name + "\"");
+  // Separate -c commands: CREATE DATABASE cannot run in a transaction.
+  Psql(std::vector<std::string>{
+      "DROP DATABASE IF EXISTS \"" + name + "\" WITH (FORCE)",
+      "CREATE DATABASE \"" + name + "\""});
   return Url(name);
 }
 

@@ -59,6 +59,9 @@ class PgServer {
   /// Runs SQL through psql on database `db`; returns its unaligned output.
   /// @throws std::runtime_error when psql fails.
   std::string Psql(const std::string& sql, const std::string& db = "postgres");
+  /// Runs several commands, each in its own transaction (psql -c ... -c).
+  std::string Psql(const std::vector<std::string>& commands,
+                   const std::string& db = "postgres");
   /// The server's log so far.
   std::string ReadLog() const;
 
