@@ -3,6 +3,8 @@
 #include <fstream>
 #include <iostream>
 
+#include <unistd.h>
+
 #include "frictiond/server/routes.h"
 
 namespace frictiond {
@@ -136,6 +138,11 @@ int Daemon::Start() {
     LcmEndpointOptions lo_lcm;
     lo_lcm.url = config_.lcm_url;
     lo_lcm.recognize = recognize;
+    {
+      char host[256] = {0};
+      if (::gethostname(host, sizeof host - 1) != 0) host[0] = '\0';
+      lo_lcm.worker_id = std::string(host) + ":" + std::to_string(port);
+    }
     lcm_ = std::make_unique<LcmEndpoint>(*library_, lo_lcm);
     lcm_->Start();
     std::cerr << "frictiond: LCM endpoint on " << config_.lcm_url << "\n";

@@ -41,6 +41,9 @@ using nlohmann::json;
 namespace {
 
 constexpr std::size_t kMaxTextField = 128;
+// Job claims are renewed this often while a job's chunks arrive (the store
+// lets another daemon take a claim not renewed for 60 s).
+constexpr double kClaimRenewS = 10.0;
 
 std::int64_t NowUtime() {
   return std::chrono::duration_cast<std::chrono::microseconds>(
@@ -442,9 +445,16 @@ class LcmEndpointImpl {
                         "')");
     // In a fleet every daemon hears the chunks; the one that claims the job
     // (once, in the shared store) acts on it, the others stay silent.
-    if (!claimed_.count(job->id)) {
-      if (!library_.store().ClaimJob(job->id, worker_id_)) return;
-      claimed_.insert(job->id);
+    // The claim is a lease, renewed while chunks arrive, so that the job of
+    // a daemon that died is taken over (Store::ClaimJob).
+    const double now_s = NowMonotonicS();
+    auto claim = claimed_.find(job->id);
+    if (claim == claimed_.end() || now_s - claim->second > kClaimRenewS) {
+      if (!library_.store().ClaimJob(job->id, worker_id_)) {
+        if (claim != claimed_.end()) claimed_.erase(claim);
+        return;
+      }
+      claimed_[job->id] = now_s;
     }
     JobProgress& jp = jobs_[job->id];
     if (jp.done_strokes.count(m.stroke)) return;  // late duplicate
@@ -723,9 +733,10 @@ class LcmEndpointImpl {
   std::shared_ptr<LcmPublisher> publisher_;
   StrokeReassembler reassembler_;
   std::map<std::int64_t, JobProgress> jobs_;
-  std::set<std::int64_t> claimed_;  // jobs this endpoint claimed
-  // Worker id for ClaimJob: host, process and a random part.
-  const std::string worker_id_ = MakeWorkerId();
+  // Jobs this endpoint claimed, with the time of the last claim renewal.
+  std::map<std::int64_t, double> claimed_;
+  const std::string worker_id_ =
+      options_.worker_id.empty() ? MakeWorkerId() : options_.worker_id;
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };

@@ -552,12 +552,16 @@ class PgStore final : public Store {
       // A job row locked by another daemon's claim is skipped, not waited
       // for: that daemon is taking it.
       const Result row = tx.Exec(
-          std::string("SELECT claimed_by FROM jobs WHERE id=$1 AND state IN ") +
+          std::string("SELECT claimed_by, updated_at < to_char((now() AT "
+                      "TIME ZONE 'UTC') - interval '60 seconds', "
+                      "'YYYY-MM-DD\"T\"HH24:MI:SS.MS\"Z\"') FROM jobs WHERE "
+                      "id=$1 AND state IN ") +
               kOpenStates + " FOR UPDATE SKIP LOCKED",
           Params().Int(id));
       if (row.Rows() == 0) return std::nullopt;
       const std::string by = row.Text(0, 0);
-      if (!by.empty() && by != worker) return std::nullopt;
+      const bool expired = row.Text(0, 1) == "t";
+      if (!by.empty() && by != worker && !expired) return std::nullopt;
       const Result r = tx.Exec(
           std::string("UPDATE jobs SET claimed_by=$1, updated_at=$2 WHERE "
                       "id=$3 RETURNING ") +

@@ -610,7 +610,9 @@ class SqliteStore final : public Store {
       std::int64_t id, const std::string& worker) override {
     std::lock_guard<std::mutex> lock(mu_);
     Stmt(std::string("UPDATE jobs SET claimed_by=?, updated_at=? WHERE id=? "
-                     "AND (claimed_by='' OR claimed_by=?) AND state IN ") +
+                     "AND (claimed_by='' OR claimed_by=? OR updated_at < "
+                     "strftime('%Y-%m-%dT%H:%M:%fZ','now','-60 seconds')) "
+                     "AND state IN ") +
          kOpenStates)
         .Reset()
         .Bind(worker)

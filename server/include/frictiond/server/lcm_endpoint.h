@@ -41,6 +41,10 @@ struct LcmEndpointOptions {
   /// Recognition hook for queries with an image (empty: such queries are
   /// rejected). The daemon passes the one its HTTP routes use.
   RecognizeImageFn recognize;
+  /// Names this daemon in identification-job claims (Store::ClaimJob), so
+  /// that in a fleet one daemon acts on a job. Stable across restarts of the
+  /// same daemon (the daemon passes host:port); empty: host:pid:random.
+  std::string worker_id;
 };
 
 /// The endpoint. Not copyable or movable.

@@ -186,9 +186,10 @@ class Store {
   /// Jobs, newest first; `open_only` keeps requested/stroking/enough_coverage.
   virtual std::vector<IdentificationJob> ListJobs(bool open_only) = 0;
   /// Claims an open job for `worker` so that only one daemon of a fleet acts
-  /// on it: succeeds when the job is open and unclaimed (or already claimed
-  /// by `worker`), atomically against other daemons (PostgreSQL: SELECT ...
-  /// FOR UPDATE SKIP LOCKED; SQLite: a conditional UPDATE).
+  /// on it: succeeds when the job is open and unclaimed, already claimed by
+  /// `worker` (this renews the claim), or its claim was not renewed for 60 s
+  /// (its daemon died), atomically against other daemons (PostgreSQL:
+  /// SELECT ... FOR UPDATE SKIP LOCKED; SQLite: a conditional UPDATE).
   /// @return the claimed job, or nullopt when unknown, closed or claimed by
   /// another worker.
   virtual std::optional<IdentificationJob> ClaimJob(
