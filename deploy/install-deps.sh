@@ -7,7 +7,7 @@ packages=(
   # toolchain
   build-essential cmake pkg-config git clang-format
   # libraries (see README "Dependencies" for why each is here)
-  libeigen3-dev libsqlite3-dev sqlite3 libcpp-httplib-dev nlohmann-json3-dev libcli11-dev
+  libeigen3-dev libsqlite3-dev sqlite3 libpq-dev libcpp-httplib-dev nlohmann-json3-dev libcli11-dev
   liblcm-dev liblcm-bin libglib2.0-dev
   libopencv-dev
   libssl-dev           # SHA-256 / HMAC-SHA256 (API tokens, signed LCM)
@@ -17,6 +17,7 @@ packages=(
   python3-numpy python3-scipy
   gimp-data            # real texture images for the recognition tests
   iproute2 util-linux  # private network namespace for LCM multicast tests
+  postgresql          # throw-away PostgreSQL 15 servers for the fleet tests
   curl
   chromium nodejs      # the console's browser test (tests/browser, docs/console.md)
 )

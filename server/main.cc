@@ -23,8 +23,11 @@ int main(int argc, char** argv) {
   // Flags are applied after the config file, so remember which were given.
   std::string db, bind, data, lcm;
   int port = -1, max_body_mb = -1, threads = -1;
-  app.add_option(
-      "--db", db, "SQLite database file (created if missing) [frictiond.db]");
+  app.add_option("--db",
+                 db,
+                 "SQLite database file (created if missing) or "
+                 "postgresql://USER@HOST:PORT/DB "
+                 "(fleet, docs/fleet.md) [frictiond.db]");
   app.add_option("--port", port, "HTTP port [8080]");
   app.add_option("--bind", bind, "HTTP bind address [127.0.0.1]");
   app.add_option("--data",

@@ -174,18 +174,30 @@ void Authenticator::Install(HttpServer& http) {
 
 std::optional<TokenRecord> Authenticator::Lookup(const std::string& hash) {
   const auto now = std::chrono::steady_clock::now();
+  std::optional<TokenRecord> last_known;
   {
     std::lock_guard<std::mutex> lock(mu_);
     auto it = cache_.find(hash);
     if (it != cache_.end()) {
       if (now - it->second.at < options_.cache_ttl) return it->second.token;
-      cache_.erase(it);
+      last_known = it->second.token;
     }
   }
-  std::optional<TokenRecord> t = store_.FindTokenByHash(hash);
+  std::optional<TokenRecord> t;
+  try {
+    t = store_.FindTokenByHash(hash);
+  } catch (const StoreUnavailable&) {
+    // The database is away (fleet back end): the token's last validation
+    // stands, so callers keep getting cached reads (docs/fleet.md); a token
+    // never seen before gets the 503.
+    if (last_known) return last_known;
+    throw;
+  }
+  std::lock_guard<std::mutex> lock(mu_);
   if (t && t->revoked_at.empty()) {
-    std::lock_guard<std::mutex> lock(mu_);
     cache_[hash] = Cached{*t, now};
+  } else {
+    cache_.erase(hash);
   }
   return t;
 }

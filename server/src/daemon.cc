@@ -5,6 +5,8 @@
 #include <iostream>
 #include <iterator>
 
+#include <unistd.h>
+
 #include "frictiond/crypto/hmac.h"
 #include "frictiond/server/lcm_auth.h"
 #include "frictiond/server/routes.h"
@@ -127,7 +129,8 @@ void DaemonConfig::LoadFile(const std::string& path) {
 
 void DaemonConfig::Validate() const {
   if (db.empty())
-    throw std::invalid_argument("--db: empty (give a SQLite file path)");
+    throw std::invalid_argument(
+        "--db: empty (give a SQLite file path or a postgresql:// URL)");
   if (!(port >= 0 && port <= 65535))
     throw std::invalid_argument("--port " + std::to_string(port) +
                                 ": must be in 0..65535");
@@ -217,6 +220,9 @@ int Daemon::Start() {
   RegisterAuthRoutes(*http_, *auth_, library_->store());
   auth_->Install(*http_);
   const int port = http_->Bind(config_.bind, config_.port);
+  // Fleet: writes of other daemons on a shared database (PostgreSQL)
+  // invalidate this daemon's cache and are broadcast on LCM.
+  library_->WatchStoreChanges();
   if (config_.lcm_url != "none") {
     LcmEndpointOptions lo_lcm;
     lo_lcm.url = config_.lcm_url;
@@ -228,6 +234,11 @@ int Daemon::Start() {
     if (lo_lcm.security.keys.empty() && !lo_lcm.security.allow_unsigned)
       std::cerr << "frictiond: LCM: no lcm_keys and lcm_allow_unsigned off: "
                    "robots can query but every stroke chunk is dropped\n";
+    {
+      char host[256] = {0};
+      if (::gethostname(host, sizeof host - 1) != 0) host[0] = '\0';
+      lo_lcm.worker_id = std::string(host) + ":" + std::to_string(port);
+    }
     lcm_ = std::make_unique<LcmEndpoint>(*library_, lo_lcm);
     lcm_->Start();
     std::cerr << "frictiond: LCM endpoint on " << config_.lcm_url << " ("

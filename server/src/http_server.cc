@@ -6,6 +6,7 @@
 #include <httplib.h>
 
 #include "frictiond/server/request_error.h"
+#include "frictiond/storage/store.h"
 
 namespace frictiond {
 
@@ -271,6 +272,9 @@ HttpResponse HttpServer::Dispatch(HttpRequest request) const {
       out = HttpResponse::Json(e.status(), j);
     } catch (const std::invalid_argument& e) {
       out = HttpResponse::Error(400, "bad request", e.what());
+    } catch (const StoreUnavailable& e) {
+      // The database server is unreachable: nothing was stored; retry later.
+      out = HttpResponse::Error(503, "unavailable", e.what());
     } catch (const std::exception& e) {
       out = HttpResponse::Error(500, "internal error", e.what());
     }

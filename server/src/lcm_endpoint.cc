@@ -14,10 +14,12 @@
 #include <iostream>
 #include <map>
 #include <mutex>
+#include <random>
 #include <set>
 #include <thread>
 
 #include <lcm/lcm-cpp.hpp>
+#include <unistd.h>
 
 #include "frictiond/coverage_progress_v1.hpp"
 #include "frictiond/crypto/lcm_signing.h"
@@ -41,6 +43,9 @@ using nlohmann::json;
 namespace {
 
 constexpr std::size_t kMaxTextField = 128;
+// Job claims are renewed this often while a job's chunks arrive (the store
+// lets another daemon take a claim not renewed for 60 s).
+constexpr double kClaimRenewS = 10.0;
 
 std::int64_t NowUtime() {
   return std::chrono::duration_cast<std::chrono::microseconds>(
@@ -140,6 +145,15 @@ class LcmPublisher {
   std::mutex mu_;
   lcm::LCM* lcm_;
 };
+
+/// "host:pid:random" naming this daemon in job claims.
+std::string MakeWorkerId() {
+  char host[256] = {0};
+  if (::gethostname(host, sizeof host - 1) != 0) host[0] = '\0';
+  std::random_device rd;
+  return std::string(host) + ":" + std::to_string(::getpid()) + ":" +
+         std::to_string(rd() % 1000000);
+}
 
 class LcmEndpointImpl {
  public:
@@ -538,6 +552,19 @@ class LcmEndpointImpl {
                     "fingertip = '" + fingertip.substr(0, 64) + "' (job " +
                         std::to_string(job->id) + " is for '" + job->fingertip +
                         "')");
+    // In a fleet every daemon hears the chunks; the one that claims the job
+    // (once, in the shared store) acts on it, the others stay silent.
+    // The claim is a lease, renewed while chunks arrive, so that the job of
+    // a daemon that died is taken over (Store::ClaimJob).
+    const double now_s = NowMonotonicS();
+    auto claim = claimed_.find(job->id);
+    if (claim == claimed_.end() || now_s - claim->second > kClaimRenewS) {
+      if (!library_.store().ClaimJob(job->id, worker_id_)) {
+        if (claim != claimed_.end()) claimed_.erase(claim);
+        return;
+      }
+      claimed_[job->id] = now_s;
+    }
     JobProgress& jp = jobs_[job->id];
     if (jp.done_strokes.count(m.stroke)) return;  // late duplicate
     if (m.stroke >= options_.max_strokes_per_job)
@@ -816,6 +843,10 @@ class LcmEndpointImpl {
   StrokeReassembler reassembler_;
   LcmAuthenticator auth_;
   std::map<std::int64_t, JobProgress> jobs_;
+  // Jobs this endpoint claimed, with the time of the last claim renewal.
+  std::map<std::int64_t, double> claimed_;
+  const std::string worker_id_ =
+      options_.worker_id.empty() ? MakeWorkerId() : options_.worker_id;
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };

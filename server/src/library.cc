@@ -87,7 +87,56 @@ FrictionLibrary::FrictionLibrary(std::unique_ptr<Store> store,
                                  LibraryOptions options)
     : store_(std::move(store)), options_(options) {}
 
-FrictionLibrary::~FrictionLibrary() = default;
+FrictionLibrary::~FrictionLibrary() {
+  // The store's listener thread calls back into this object.
+  if (watching_) store_->SetChangeListener(nullptr);
+}
+
+void FrictionLibrary::WatchStoreChanges() {
+  watching_ = true;
+  store_->SetChangeListener(
+      [this](const std::string& material, const std::string& fingertip) {
+        OnStoreChange(material, fingertip);
+      });
+}
+
+void FrictionLibrary::ForgetAnnounced(const std::string& material) {
+  // A deleted and re-created material starts again at version 1.
+  std::lock_guard<std::mutex> lock(listeners_mu_);
+  for (auto it = notified_.begin(); it != notified_.end();) {
+    it = it->first.rfind(material + '\n', 0) == 0 ? notified_.erase(it)
+                                                  : std::next(it);
+  }
+}
+
+void FrictionLibrary::OnStoreChange(const std::string& material,
+                                    const std::string& fingertip) {
+  if (material.empty()) {
+    InvalidateAllCached();
+    return;
+  }
+  if (fingertip.empty()) {
+    ForgetAnnounced(material);
+    std::unique_lock lock(cache_mu_);
+    ++cache_gen_;
+    for (auto it = cache_.begin(); it != cache_.end();) {
+      if (it->first.rfind(material + '\n', 0) == 0) {
+        stale_[it->first] = it->second;
+        it = cache_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    return;
+  }
+  Invalidate(material, fingertip);
+  bool announce;
+  {
+    std::lock_guard<std::mutex> lock(listeners_mu_);
+    announce = !listeners_.empty();
+  }
+  if (announce) Notify(FindModel(material, fingertip));
+}
 
 std::vector<Material> FrictionLibrary::ListMaterials() {
   return store_->ListMaterials();
@@ -163,9 +212,14 @@ bool FrictionLibrary::PutMaterial(const std::string& id,
 bool FrictionLibrary::DeleteMaterial(const std::string& id) {
   CheckId(id, "id");
   const bool deleted = store_->DeleteMaterial(id);
+  ForgetAnnounced(id);
   std::unique_lock lock(cache_mu_);
+  ++cache_gen_;
   for (auto it = cache_.begin(); it != cache_.end();) {
     it = it->first.rfind(id + '\n', 0) == 0 ? cache_.erase(it) : std::next(it);
+  }
+  for (auto it = stale_.begin(); it != stale_.end();) {
+    it = it->first.rfind(id + '\n', 0) == 0 ? stale_.erase(it) : std::next(it);
   }
   return deleted;
 }
@@ -188,15 +242,28 @@ std::shared_ptr<const CachedModel> FrictionLibrary::Decode(
 std::shared_ptr<const CachedModel> FrictionLibrary::FindModel(
     const std::string& material, const std::string& fingertip) {
   const std::string key = Key(material, fingertip);
+  std::uint64_t gen;
   {
     std::shared_lock lock(cache_mu_);
     auto it = cache_.find(key);
     if (it != cache_.end()) return it->second;
+    gen = cache_gen_;
   }
-  auto record = store_->GetLatestModel(material, fingertip);
+  std::optional<ModelRecord> record;
+  try {
+    record = store_->GetLatestModel(material, fingertip);
+  } catch (const StoreUnavailable&) {
+    // Database server away: serve the last model this daemon knew.
+    std::shared_lock lock(cache_mu_);
+    auto it = stale_.find(key);
+    if (it == stale_.end()) throw;
+    return it->second;
+  }
   if (!record) return nullptr;
   auto cm = Decode(*record);
   std::unique_lock lock(cache_mu_);
+  stale_.erase(key);
+  if (cache_gen_ != gen) return cm;  // invalidated meanwhile: do not cache
   auto [it, inserted] = cache_.emplace(key, cm);
   if (!inserted && it->second->set.version < cm->set.version) it->second = cm;
   return it->second;
@@ -476,7 +543,13 @@ std::shared_ptr<const CachedModel> FrictionLibrary::AddFamilyVersion(
 void FrictionLibrary::Invalidate(const std::string& material,
                                  const std::string& fingertip) {
   std::unique_lock lock(cache_mu_);
-  cache_.erase(Key(material, fingertip));
+  ++cache_gen_;
+  const std::string key = Key(material, fingertip);
+  auto it = cache_.find(key);
+  if (it != cache_.end()) {
+    stale_[key] = it->second;
+    cache_.erase(it);
+  }
 }
 
 void FrictionLibrary::InvalidateCached(const std::string& material,
@@ -486,6 +559,8 @@ void FrictionLibrary::InvalidateCached(const std::string& material,
 
 void FrictionLibrary::InvalidateAllCached() {
   std::unique_lock lock(cache_mu_);
+  ++cache_gen_;
+  for (auto& [key, model] : cache_) stale_[key] = model;
   cache_.clear();
 }
 
@@ -504,6 +579,11 @@ void FrictionLibrary::Notify(const std::shared_ptr<const CachedModel>& model) {
   std::vector<ModelListener> copy;
   {
     std::lock_guard<std::mutex> lock(listeners_mu_);
+    // Once per version: a version made here and announced by the store's
+    // change notification, or seen twice, is announced once.
+    int& last = notified_[Key(model->set.material, model->set.fingertip)];
+    if (model->set.version <= last) return;
+    last = model->set.version;
     copy = listeners_;
   }
   for (auto& l : copy) l(*model);

@@ -37,6 +37,10 @@ std::string NowIso8601() {
 }
 
 namespace internal {
+#ifdef FRICTIOND_HAVE_POSTGRES
+/// The PostgreSQL back end (pg_store.cc).
+std::unique_ptr<Store> OpenPgStore(const std::string& url);
+#endif
 namespace {
 
 // Schema migrations; index i brings the schema from version i to i + 1.
@@ -82,6 +86,10 @@ CREATE TABLE audit(
   role TEXT NOT NULL, remote TEXT NOT NULL, action TEXT NOT NULL,
   material TEXT NOT NULL, detail TEXT NOT NULL);
 CREATE INDEX audit_material ON audit(material, id);
+)sql",
+    // Identification jobs claimed by one worker (ClaimJob).
+    R"sql(
+ALTER TABLE jobs ADD COLUMN claimed_by TEXT NOT NULL DEFAULT '';
 )sql",
 };
 
@@ -596,6 +604,24 @@ class SqliteStore final : public Store {
     return out;
   }
 
+  std::optional<IdentificationJob> ClaimJob(
+      std::int64_t id, const std::string& worker) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    Stmt(std::string("UPDATE jobs SET claimed_by=?, updated_at=? WHERE id=? "
+                     "AND (claimed_by='' OR claimed_by=? OR updated_at < "
+                     "strftime('%Y-%m-%dT%H:%M:%fZ','now','-60 seconds')) "
+                     "AND state IN ") +
+         kOpenStates)
+        .Reset()
+        .Bind(worker)
+        .Bind(NowIso8601())
+        .Bind(id)
+        .Bind(worker)
+        .Run();
+    if (sqlite3_changes(db_) == 0) return std::nullopt;
+    return GetJobLocked(id);
+  }
+
   bool AddToken(const TokenRecord& tok) override {
     std::lock_guard<std::mutex> lock(mu_);
     Transaction tx(this);
@@ -888,9 +914,14 @@ class SqliteStore final : public Store {
 
 std::unique_ptr<Store> OpenStore(const std::string& url) {
   if (url.rfind("postgresql://", 0) == 0 || url.rfind("postgres://", 0) == 0) {
+#ifdef FRICTIOND_HAVE_POSTGRES
+    return internal::OpenPgStore(url);
+#else
     throw std::invalid_argument(
         "--db " + url +
-        ": the PostgreSQL back end is not built into this frictiond");
+        ": the PostgreSQL back end is not built into this frictiond "
+        "(FRICTIOND_WITH_POSTGRES=OFF or libpq missing)");
+#endif
   }
   std::string path = url;
   if (path.rfind("sqlite://", 0) == 0) path = path.substr(9);

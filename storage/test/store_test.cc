@@ -1,14 +1,59 @@
 #include "frictiond/storage/store.h"
 
+#include <atomic>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <mutex>
+#include <set>
 #include <string>
+#include <thread>
 
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include "frictiond/testing/pg_server.h"
+
 namespace frictiond {
 namespace {
+
+using testing::PgServer;
+
+/// False when this build has no PostgreSQL back end
+/// (FRICTIOND_WITH_POSTGRES=OFF or no libpq): its tests are skipped then.
+bool PgBackendBuilt() {
+  try {
+    OpenStore("postgresql://postgres@127.0.0.1:1/x?connect_timeout=1");
+  } catch (const std::invalid_argument&) {
+    return false;
+  } catch (const std::exception&) {
+  }
+  return true;
+}
+
+/// One throw-away PostgreSQL server for the whole test program; each test
+/// gets a fresh database on it.
+std::unique_ptr<PgServer>& SharedPgPtr() {
+  static std::unique_ptr<PgServer> pg;
+  return pg;
+}
+PgServer& SharedPg() {
+  static std::mutex mu;
+  std::lock_guard<std::mutex> lock(mu);
+  auto& pg = SharedPgPtr();
+  if (!pg) {
+    auto p = std::make_unique<PgServer>();
+    p->Start();
+    pg = std::move(p);
+  }
+  return *pg;
+}
+
+std::string FreshPgDatabase() {
+  static std::atomic<int> n{0};
+  return SharedPg().CreateDatabase("t" + std::to_string(::getpid()) + "_" +
+                                   std::to_string(++n));
+}
 
 // The suite is parametrised by back end URL factory so a second back end
 // (PostgreSQL) runs the same tests unchanged.
@@ -20,8 +65,14 @@ class StoreTest : public ::testing::TestWithParam<std::string> {
             ::testing::UnitTest::GetInstance()->current_test_info()->name());
     std::filesystem::remove_all(dir_);
     std::filesystem::create_directories(dir_);
-    url_ = GetParam() == "sqlite-file" ? (dir_ / "lib.db").string()
-                                       : std::string(":memory:");
+    if (GetParam() == "postgresql") {
+      if (!PgBackendBuilt()) GTEST_SKIP() << "built without PostgreSQL";
+      if (!PgServer::RequireOrSkip()) GTEST_SKIP() << "no PostgreSQL";
+      url_ = FreshPgDatabase();
+    } else {
+      url_ = GetParam() == "sqlite-file" ? (dir_ / "lib.db").string()
+                                         : std::string(":memory:");
+    }
     store_ = OpenStore(url_);
   }
   void TearDown() override {
@@ -149,7 +200,7 @@ TEST_P(StoreTest, IdentificationJobsOpenOncePerPair) {
 }
 
 TEST_P(StoreTest, ReopenKeepsDataAndSchema) {
-  if (GetParam() != "sqlite-file")
+  if (GetParam() == "sqlite-memory")
     GTEST_SKIP() << "in-memory database does not persist";
   store_->PutMaterial(Material{"a", "A", "", {}, "", ""});
   const int schema = store_->SchemaVersion();
@@ -224,15 +275,216 @@ TEST_P(StoreTest, AuditAppendsAndPagesByMaterial) {
   EXPECT_EQ(store_->ListAudit(0, 100, "even").size(), 3u);
 }
 
+TEST_P(StoreTest, TokensAndAudit) {
+  TokenRecord t{
+      "tok_000000000001", "ci", "robot", std::string(64, 'a'), "", ""};
+  EXPECT_TRUE(store_->AddToken(t));
+  EXPECT_FALSE(store_->AddToken(t));
+  TokenRecord t2 = t;
+  t2.id = "tok_000000000002";
+  t2.hash = std::string(64, 'b');
+  t2.role = "operator";
+  EXPECT_TRUE(store_->AddToken(t2));
+  const auto found = store_->FindTokenByHash(std::string(64, 'b'));
+  ASSERT_TRUE(found);
+  EXPECT_EQ(found->id, t2.id);
+  EXPECT_EQ(found->role, "operator");
+  EXPECT_FALSE(found->created_at.empty());
+  EXPECT_TRUE(found->revoked_at.empty());
+  EXPECT_FALSE(store_->FindTokenByHash("c"));
+  const auto all = store_->ListTokens();
+  ASSERT_EQ(all.size(), 2u);
+  EXPECT_EQ(all[0].id, t.id);
+  EXPECT_TRUE(store_->RevokeToken(t.id));
+  EXPECT_FALSE(store_->RevokeToken(t.id));
+  EXPECT_FALSE(store_->RevokeToken("tok_nope"));
+  EXPECT_FALSE(store_->FindTokenByHash(t.hash)->revoked_at.empty());
+
+  AuditEntry e;
+  e.actor = t.id;
+  e.role = "robot";
+  e.action = "POST /v1/materials/{id}/strokes";
+  e.material = "felt";
+  e.detail = R"({"version":1})";
+  const std::int64_t a1 = store_->AppendAudit(e);
+  e.material = "cork";
+  const std::int64_t a2 = store_->AppendAudit(e);
+  e.material = "felt";
+  const std::int64_t a3 = store_->AppendAudit(e);
+  EXPECT_LT(a1, a2);
+  EXPECT_LT(a2, a3);
+  EXPECT_EQ(store_->ListAudit(0, 100, "").size(), 3u);
+  const auto felt = store_->ListAudit(0, 100, "felt");
+  ASSERT_EQ(felt.size(), 2u);
+  EXPECT_EQ(felt[1].id, a3);
+  EXPECT_EQ(felt[0].detail, e.detail);
+  EXPECT_FALSE(felt[0].at.empty());
+  EXPECT_EQ(store_->ListAudit(a1, 1, "").size(), 1u);
+  EXPECT_EQ(store_->ListAudit(a1, 1, "")[0].id, a2);
+}
+
+TEST_P(StoreTest, JobIsClaimedByOneWorker) {
+  IdentificationJob j;
+  j.material = "m";
+  j.plan_json = "{}";
+  const auto job = store_->RequestIdentification(j);
+  EXPECT_FALSE(store_->ClaimJob(job.id + 1000, "a"));
+  const auto a = store_->ClaimJob(job.id, "daemon-a");
+  ASSERT_TRUE(a);
+  EXPECT_EQ(a->id, job.id);
+  EXPECT_FALSE(store_->ClaimJob(job.id, "daemon-b"));
+  EXPECT_TRUE(store_->ClaimJob(job.id, "daemon-a"));  // idempotent
+  store_->UpdateJob(job.id, "failed", "x");
+  EXPECT_FALSE(store_->ClaimJob(job.id, "daemon-a"));  // closed
+}
+
 TEST(OpenStore, RejectsUnsupportedUrl) {
-  EXPECT_THROW(OpenStore("postgresql://localhost/x"), std::invalid_argument);
+  // Unbuilt back end (invalid_argument) or unreachable server
+  // (StoreUnavailable); either way no store.
+  try {
+    OpenStore("postgresql://postgres@127.0.0.1:1/x?connect_timeout=2");
+    ADD_FAILURE() << "opened a store on a closed port";
+  } catch (const StoreUnavailable&) {
+  } catch (const std::invalid_argument&) {
+  }
   EXPECT_THROW(OpenStore(""), std::invalid_argument);
   EXPECT_THROW(OpenStore("/nonexistent-dir/x/y.db"), std::runtime_error);
 }
 
 INSTANTIATE_TEST_SUITE_P(Backends,
                          StoreTest,
-                         ::testing::Values("sqlite-file", "sqlite-memory"));
+                         ::testing::Values("sqlite-file",
+                                           "sqlite-memory",
+                                           "postgresql"));
+
+// --- PostgreSQL only: several stores (daemons) on one database -------------
+
+class PgFleetTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!PgBackendBuilt()) GTEST_SKIP() << "built without PostgreSQL";
+    if (!PgServer::RequireOrSkip()) GTEST_SKIP() << "no PostgreSQL";
+    url_ = FreshPgDatabase();
+  }
+  std::string url_;
+};
+
+TEST_F(PgFleetTest, ConcurrentUploadsGetDistinctConsecutiveVersions) {
+  auto a = OpenStore(url_);
+  auto b = OpenStore(url_);
+  ASSERT_EQ(a->BackendName(), "postgresql");
+  constexpr int kPerStore = 10;
+  std::mutex mu;
+  std::vector<int> versions;
+  auto run = [&](Store* s, const std::string& robot) {
+    for (int i = 0; i < kPerStore; ++i) {
+      StrokeRecord st;
+      st.material = "shared";
+      st.robot = robot;
+      st.samples = 1;
+      st.csv = "x";
+      ModelRecord m;
+      m.material = "shared";
+      m.reason = "upload";
+      m.json = "{\"robot\":\"" + robot + "\"}";
+      const int v = s->CommitUpload(st, m).version;
+      std::lock_guard<std::mutex> lock(mu);
+      versions.push_back(v);
+    }
+  };
+  std::thread ta(run, a.get(), "a");
+  std::thread tb(run, b.get(), "b");
+  ta.join();
+  tb.join();
+  const std::set<int> distinct(versions.begin(), versions.end());
+  EXPECT_EQ(distinct.size(), versions.size());
+  EXPECT_EQ(*distinct.begin(), 1);
+  EXPECT_EQ(*distinct.rbegin(), 2 * kPerStore);
+  EXPECT_EQ(a->ListModels("shared", "default").size(), 2u * kPerStore);
+  EXPECT_EQ(b->ListStrokes("shared", "default").size(), 2u * kPerStore);
+  EXPECT_EQ(a->CheckIntegrity(), "");
+}
+
+TEST_F(PgFleetTest, OtherStoresWritesAreNotified) {
+  auto a = OpenStore(url_);
+  auto b = OpenStore(url_);
+  std::mutex mu;
+  std::vector<std::string> seen_b, seen_a;
+  b->SetChangeListener([&](const std::string& m, const std::string& f) {
+    std::lock_guard<std::mutex> lock(mu);
+    seen_b.push_back(m + "/" + f);
+  });
+  a->SetChangeListener([&](const std::string& m, const std::string& f) {
+    std::lock_guard<std::mutex> lock(mu);
+    seen_a.push_back(m + "/" + f);
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // LISTEN
+  StrokeRecord st;
+  st.material = "felt";
+  st.csv = "x";
+  ModelRecord m;
+  m.material = "felt";
+  m.json = "{}";
+  const auto t0 = std::chrono::steady_clock::now();
+  a->CommitUpload(st, m);
+  bool got = false;
+  while (!got &&
+         std::chrono::steady_clock::now() - t0 < std::chrono::seconds(2)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    std::lock_guard<std::mutex> lock(mu);
+    got = !seen_b.empty();
+  }
+  const double ms = std::chrono::duration<double, std::milli>(
+                        std::chrono::steady_clock::now() - t0)
+                        .count();
+  ASSERT_TRUE(got) << "no notification within 2 s";
+  EXPECT_LT(ms, 1000.0);
+  std::lock_guard<std::mutex> lock(mu);
+  EXPECT_EQ(seen_b[0], "felt/default");
+  EXPECT_TRUE(seen_a.empty()) << "a store is not told about its own writes";
+}
+
+TEST_F(PgFleetTest, ClaimSkipsLockedAndClaimedJobs) {
+  auto a = OpenStore(url_);
+  auto b = OpenStore(url_);
+  IdentificationJob j;
+  j.material = "cloth";
+  j.plan_json = "{}";
+  const auto job = a->RequestIdentification(j);
+  EXPECT_EQ(b->RequestIdentification(j).id, job.id);  // one open job
+  std::atomic<int> wins{0};
+  std::thread ta([&] { wins += a->ClaimJob(job.id, "a") ? 1 : 0; });
+  std::thread tb([&] { wins += b->ClaimJob(job.id, "b") ? 1 : 0; });
+  ta.join();
+  tb.join();
+  EXPECT_EQ(wins.load(), 1);
+}
+
+TEST(PgFaults, UnavailableWhileStoppedThenReconnects) {
+  if (!PgBackendBuilt()) GTEST_SKIP() << "built without PostgreSQL";
+  if (!PgServer::RequireOrSkip()) GTEST_SKIP() << "no PostgreSQL";
+  // The shared server: stopped and crashed here, running again at the end.
+  PgServer& pg = SharedPg();
+  const std::string url = FreshPgDatabase();
+  auto store = OpenStore(url);
+  StrokeRecord st;
+  st.material = "felt";
+  st.csv = "x";
+  ModelRecord m;
+  m.material = "felt";
+  m.json = "{}";
+  EXPECT_EQ(store->CommitUpload(st, m).version, 1);
+  pg.Stop();
+  EXPECT_THROW(store->CommitUpload(st, m), StoreUnavailable);
+  EXPECT_THROW(store->GetMaterial("felt"), StoreUnavailable);
+  EXPECT_THROW(OpenStore(url), StoreUnavailable);
+  pg.Start();  // same data directory and port
+  EXPECT_EQ(store->CommitUpload(st, m).version, 2);
+  EXPECT_EQ(store->ListModels("felt", "default").size(), 2u);
+  pg.Crash();  // immediate shutdown: acknowledged writes survive recovery
+  pg.Start();
+  EXPECT_EQ(store->GetLatestModel("felt", "default")->version, 2);
+}
 
 }  // namespace
 }  // namespace frictiond

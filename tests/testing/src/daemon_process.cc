@@ -137,7 +137,13 @@ DaemonProcess::DaemonProcess(DaemonOptions options)
   if (options_.db.empty())
     throw std::invalid_argument("DaemonOptions.db: empty (give a file path)");
   if (options_.binary.empty()) options_.binary = BinaryPath("frictiond");
-  if (options_.log_path.empty()) options_.log_path = options_.db + ".log";
+  if (options_.log_path.empty()) {
+    if (options_.db.find("://") != std::string::npos)
+      throw std::invalid_argument(
+          "DaemonOptions.log_path: required when db is a URL (" + options_.db +
+          ")");
+    options_.log_path = options_.db + ".log";
+  }
 }
 
 DaemonProcess::~DaemonProcess() {

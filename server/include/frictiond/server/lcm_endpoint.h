@@ -53,6 +53,10 @@ struct LcmEndpointOptions {
   /// and accepted signed ones (frictiond_lcm_signed_accepted_total); null:
   /// not counted. Must outlive the endpoint.
   Metrics* metrics = nullptr;
+  /// Names this daemon in identification-job claims (Store::ClaimJob), so
+  /// that in a fleet one daemon acts on a job. Stable across restarts of the
+  /// same daemon (the daemon passes host:port); empty: host:pid:random.
+  std::string worker_id;
 };
 
 /// The endpoint. Not copyable or movable.

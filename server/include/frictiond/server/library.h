@@ -5,6 +5,7 @@
 /// input, fits models, writes through the Store and serves reads from an
 /// in-memory cache that writes invalidate.
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -172,6 +173,12 @@ class FrictionLibrary {
                         const std::string& fingertip);
   void InvalidateAllCached();
 
+  /// Subscribes to the store's change notifications (PostgreSQL back end;
+  /// a no-op on SQLite): another daemon's write drops the affected cached
+  /// models and, when it made a new model version, calls the model listeners
+  /// (e.g. the LCM model-update broadcast) once for that version.
+  void WatchStoreChanges();
+
   /// Called after every new model version (from any thread).
   using ModelListener = std::function<void(const CachedModel&)>;
   void AddModelListener(ModelListener listener);
@@ -182,16 +189,25 @@ class FrictionLibrary {
   std::shared_ptr<const CachedModel> Decode(const ModelRecord& record) const;
   void Invalidate(const std::string& material, const std::string& fingertip);
   void Notify(const std::shared_ptr<const CachedModel>& model);
+  void OnStoreChange(const std::string& material, const std::string& fingertip);
+  void ForgetAnnounced(const std::string& material);
 
   std::unique_ptr<Store> store_;
   LibraryOptions options_;
   std::shared_mutex cache_mu_;
   std::unordered_map<std::string, std::shared_ptr<const CachedModel>>
-      cache_;             // key: material '\n' fingertip
+      cache_;  // key: material '\n' fingertip
+  // Invalidated entries, served only while the store is unavailable.
+  std::unordered_map<std::string, std::shared_ptr<const CachedModel>> stale_;
   std::mutex ingest_mu_;  // serialises refits so versions follow upload order
   std::vector<std::pair<std::string, FamilyFitter>> fitters_;
   std::mutex listeners_mu_;
   std::vector<ModelListener> listeners_;
+  // Bumped by every invalidation: a store read that raced with one is not
+  // cached (it may predate the change).
+  std::atomic<std::uint64_t> cache_gen_{0};
+  std::unordered_map<std::string, int> notified_;  // newest announced version
+  bool watching_ = false;
 };
 
 /// Parses slip-labelling overrides from query-style parameters

@@ -2,7 +2,8 @@
 /// @file
 /// The persistent friction library. `Store` is the interface the daemon
 /// talks to; OpenStore() picks a back end from a URL (a SQLite file path
-/// today; `postgresql://...` is reserved for the fleet back end).
+/// or `sqlite://PATH`; `postgresql://...` for the fleet back end, several
+/// daemons sharing one library, see docs/fleet.md).
 ///
 /// Guarantees of every back end:
 /// - Each mutating call is one transaction: it either happens completely or
@@ -12,8 +13,10 @@
 /// - Thread-safe: calls may come from any thread.
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -182,6 +185,15 @@ class Store {
   virtual std::optional<IdentificationJob> GetJob(std::int64_t id) = 0;
   /// Jobs, newest first; `open_only` keeps requested/stroking/enough_coverage.
   virtual std::vector<IdentificationJob> ListJobs(bool open_only) = 0;
+  /// Claims an open job for `worker` so that only one daemon of a fleet acts
+  /// on it: succeeds when the job is open and unclaimed, already claimed by
+  /// `worker` (this renews the claim), or its claim was not renewed for 60 s
+  /// (its daemon died), atomically against other daemons (PostgreSQL:
+  /// SELECT ... FOR UPDATE SKIP LOCKED; SQLite: a conditional UPDATE).
+  /// @return the claimed job, or nullopt when unknown, closed or claimed by
+  /// another worker.
+  virtual std::optional<IdentificationJob> ClaimJob(
+      std::int64_t id, const std::string& worker) = 0;
 
   // --- images ---------------------------------------------------------------
   virtual std::int64_t AddImage(const ImageRecord& image) = 0;
@@ -218,15 +230,37 @@ class Store {
   /// Runs the back end's consistency check; empty string when fine.
   virtual std::string CheckIntegrity() = 0;
 
+  // --- change notification (fleet) ------------------------------------------
+  /// Called from a back-end thread after another process committed a write
+  /// to the shared database: `material` and `fingertip` name the changed
+  /// pair (`fingertip` empty: every pair of the material; both empty: anything
+  /// may have changed, e.g. after a reconnect). The PostgreSQL back end
+  /// delivers these through LISTEN/NOTIFY (channel frictiond_changes); the
+  /// SQLite back end is single-process and never calls it (no-op).
+  using ChangeListener = std::function<void(const std::string& material,
+                                            const std::string& fingertip)>;
+  /// Sets (or clears, with an empty function) the listener. Set it once,
+  /// before serving.
+  virtual void SetChangeListener(ChangeListener listener) { (void)listener; }
+
  protected:
   Store() = default;
 };
 
 /// Opens a store: a SQLite database file (created if missing; ":memory:" for
-/// a private in-memory database).
+/// a private in-memory database), or a PostgreSQL connection URI
+/// ("postgresql://user@host:port/db?..."; needs FRICTIOND_WITH_POSTGRES).
 /// @throws std::invalid_argument for an unsupported URL,
 /// std::runtime_error when the database cannot be opened or migrated.
 std::unique_ptr<Store> OpenStore(const std::string& url);
+
+/// Thrown by a back end whose database server cannot be reached (connection
+/// refused or lost). The call had no effect, or its transaction was not
+/// acknowledged; retrying later may succeed. The HTTP layer answers 503.
+class StoreUnavailable : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
 
 /// Current UTC time, ISO-8601 with milliseconds ("2026-11-22T21:05:07.123Z").
 std::string NowIso8601();
