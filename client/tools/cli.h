@@ -21,7 +21,7 @@ struct Globals {
   std::string fingertip = "default";             ///< fingertip id (--fingertip)
   std::string cache_dir;  ///< offline model cache (--cache-dir, env
                           ///< FRICTIOND_CACHE_DIR); "" = none
-  std::string token;  ///< API token secret (--token, env FRICTIOND_TOKEN)
+  std::string token;      ///< API token secret (--token, env FRICTIOND_TOKEN)
 };
 
 /// Reads and parses a stroke CSV file.
