@@ -29,26 +29,15 @@
 #include "frictiond/estimators/repeatability.h"
 
 #include "bench_json.h"
+#include "python_ref.h"
 
 namespace frictiond {
 namespace {
 
+using bench::RunCommand;
+
 using Clock = std::chrono::steady_clock;
 constexpr double kPi = 3.14159265358979323846;
-
-std::string RunCommand(const std::string& cmd) {
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) throw std::runtime_error("cannot run: " + cmd);
-  std::string out;
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-  const int rc = pclose(p);
-  if (rc != 0)
-    throw std::runtime_error("'" + cmd + "' exited with status " +
-                             std::to_string(rc));
-  return out;
-}
 
 double Median(std::vector<double> x) {
   std::sort(x.begin(), x.end());
@@ -58,20 +47,11 @@ double Median(std::vector<double> x) {
 double Fraction(double x) { return x - std::floor(x); }
 
 int Main(int argc, char** argv) {
-  std::string python = "/usr/bin/python3";
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--python" && i + 1 < argc) {
-      python = argv[++i];
-    } else {
-      std::cerr << "usage: joint [--python PATH]\n";
-      return 2;
-    }
-  }
-  const char* env_root = std::getenv("FRICTIOND_SOURCE_DIR");
-  const std::string script =
-      std::string(env_root ? env_root : FRICTIOND_SOURCE_DIR) +
-      "/bench/ref/joint_ref.py";
+  const auto ref = bench::ParsePythonReference(
+      argc, argv, "joint", "joint_ref.py", FRICTIOND_SOURCE_DIR);
+  if (!ref) return 2;
+  const std::string& python = ref->python;
+  const std::string& script = ref->script;
 
   // ------------------------------------------------------ mixed_friction_eval
   const MixedFrictionTheta theta = MakeMixedFrictionTheta(0.1, 0.004, 0.5, 0.6);

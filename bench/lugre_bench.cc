@@ -46,6 +46,7 @@
 #include "frictiond/storage/store.h"
 
 #include "bench_json.h"
+#include "python_ref.h"
 
 #ifndef FRICTIOND_SOURCE_DIR
 #define FRICTIOND_SOURCE_DIR "."
@@ -93,21 +94,6 @@ LuGreStroke Simulate(const std::function<double(double)>& v_of_t,
 
 double SlowRamp(double t) { return t < 10 ? 2.0 * t : 40.0 - 2.0 * t; }
 double FastRamp(double t) { return t < 0.5 ? 20.0 * t : 20.0 - 20.0 * t; }
-
-// Runs a command and returns its stdout (throws on failure).
-std::string RunCommand(const std::string& cmd) {
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) throw std::runtime_error("cannot run: " + cmd);
-  std::string out;
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-  const int rc = pclose(p);
-  if (rc != 0)
-    throw std::runtime_error("'" + cmd + "' exited with status " +
-                             std::to_string(rc));
-  return out;
-}
 
 std::string Num(double x) {
   char buf[32];
@@ -174,20 +160,11 @@ double FamilyFitterMs(const std::string& csv, int repeats) {
 }
 
 int Main(int argc, char** argv) {
-  std::string python = "/usr/bin/python3";
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--python" && i + 1 < argc) {
-      python = argv[++i];
-    } else {
-      std::cerr << "usage: lugre [--python PATH]\n";
-      return 2;
-    }
-  }
-  const char* env_root = std::getenv("FRICTIOND_SOURCE_DIR");
-  const std::string script =
-      std::string(env_root ? env_root : FRICTIOND_SOURCE_DIR) +
-      "/bench/ref/lugre_ref.py";
+  const auto ref = ParsePythonReference(
+      argc, argv, "lugre", "lugre_ref.py", FRICTIOND_SOURCE_DIR);
+  if (!ref) return 2;
+  const std::string& python = ref->python;
+  const std::string& script = ref->script;
 
   // ---------------------------------------------------------- identification
   const LuGreStroke slow = Simulate(SlowRamp, 20.0, 7);

@@ -35,25 +35,12 @@
 #include "frictiond/testing/stroke_simulator.h"
 
 #include "bench_json.h"
+#include "python_ref.h"
 
 namespace frictiond::bench {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-std::string RunCommand(const std::string& cmd) {
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) throw std::runtime_error("cannot run: " + cmd);
-  std::string out;
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-  const int rc = pclose(p);
-  if (rc != 0)
-    throw std::runtime_error("'" + cmd + "' exited with status " +
-                             std::to_string(rc));
-  return out;
-}
 
 double Seconds(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();
@@ -264,25 +251,15 @@ void BenchLikelihood(const std::string& python, const std::string& script) {
 }  // namespace frictiond::bench
 
 int main(int argc, char** argv) {
-  std::string python = "/usr/bin/python3";
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--python" && i + 1 < argc) {
-      python = argv[++i];
-    } else {
-      std::cerr << "usage: paper000 [--python PATH]\n";
-      return 2;
-    }
-  }
-  const char* env_root = std::getenv("FRICTIOND_SOURCE_DIR");
-  const std::string script =
-      std::string(env_root ? env_root : FRICTIOND_SOURCE_DIR) +
-      "/bench/ref/paper000_ref.py";
+  const auto ref = frictiond::bench::ParsePythonReference(
+      argc, argv, "paper000", "paper000_ref.py", FRICTIOND_SOURCE_DIR);
+  if (!ref) return 2;
+  const std::string& python = ref->python;
+  const std::string& script = ref->script;
   frictiond::bench::BenchOls(python, script);
-  frictiond::bench::BenchIdentify(
-      python,
-      script,
-      std::string(env_root ? env_root : FRICTIOND_SOURCE_DIR) + "/data");
+  // The data folder beside bench/ (FRICTIOND_SOURCE_DIR when set).
+  const std::string root = script.substr(0, script.rfind("/bench/ref/"));
+  frictiond::bench::BenchIdentify(python, script, root + "/data");
   frictiond::bench::BenchLikelihood(python, script);
   return 0;
 }
