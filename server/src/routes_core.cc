@@ -21,22 +21,10 @@ std::string FingertipParam(const HttpRequest& req) {
   return f;
 }
 
-namespace {
-
 std::string Requester(const HttpRequest& req) {
   std::string who = req.QueryOr("robot", req.Header("X-Robot-Id"));
   if (who.empty()) who = "http:" + req.remote_addr;
   return who.substr(0, 128);
-}
-
-const StochasticFrictionModel& Stochastic(const CachedModel& m) {
-  if (!m.set.stochastic) {
-    throw RequestError(422,
-                       "model",
-                       "model version " + std::to_string(m.set.version) +
-                           " has no stochastic model");
-  }
-  return *m.set.stochastic;
 }
 
 std::shared_ptr<const CachedModel> ModelFor(FrictionLibrary& lib,
@@ -58,6 +46,18 @@ std::shared_ptr<const CachedModel> ModelFor(FrictionLibrary& lib,
     return m;
   }
   return lib.RequireModel(id, fingertip, Requester(req));
+}
+
+namespace {
+
+const StochasticFrictionModel& Stochastic(const CachedModel& m) {
+  if (!m.set.stochastic) {
+    throw RequestError(422,
+                       "model",
+                       "model version " + std::to_string(m.set.version) +
+                           " has no stochastic model");
+  }
+  return *m.set.stochastic;
 }
 
 bool IsCsvContentType(const std::string& ct) {

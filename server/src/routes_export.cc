@@ -107,12 +107,6 @@ const StochasticFrictionModel& Stochastic(const CachedModel& m) {
   return *m.set.stochastic;
 }
 
-std::string Requester(const HttpRequest& req) {
-  std::string who = req.QueryOr("robot", req.Header("X-Robot-Id"));
-  if (who.empty()) who = "http:" + req.remote_addr;
-  return who.substr(0, 128);
-}
-
 json DistributionJson(const MuDistribution& d, double risk) {
   const SimFrictionValues v = CalcSimFrictionValues(d, risk);
   return {{"mu", d.mean},

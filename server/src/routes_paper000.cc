@@ -21,33 +21,6 @@ using nlohmann::json;
 
 namespace {
 
-std::string Requester(const HttpRequest& req) {
-  std::string who = req.QueryOr("robot", req.Header("X-Robot-Id"));
-  if (who.empty()) who = "http:" + req.remote_addr;
-  return who.substr(0, 128);
-}
-
-std::shared_ptr<const CachedModel> ModelFor(FrictionLibrary& lib,
-                                            const HttpRequest& req) {
-  const std::string& id = req.params.at(0);
-  const std::string fingertip = FingertipParam(req);
-  if (auto v = req.Query("version")) {
-    CheckId(id, "id");
-    const double x = ParseNumberParam("version", *v);
-    if (!(x >= 1 && x == std::floor(x) && x < 1e9)) {
-      throw RequestError(400,
-                         "version",
-                         "version = '" + *v + "' (must be a positive integer)");
-    }
-    auto m = lib.FindModelVersion(id, fingertip, static_cast<int>(x));
-    if (!m)
-      throw RequestError(
-          404, "version", "material '" + id + "' has no model version " + *v);
-    return m;
-  }
-  return lib.RequireModel(id, fingertip, Requester(req));
-}
-
 const StochasticFrictionModel& Stochastic(const CachedModel& m) {
   if (!m.set.stochastic) {
     throw RequestError(422,

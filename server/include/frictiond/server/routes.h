@@ -4,6 +4,7 @@
 /// registers its routes on the server against the shared library core.
 
 #include <functional>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -62,5 +63,15 @@ nlohmann::json MaterialToJson(const Material& m);
 
 /// The fingertip named by ?fingertip= (default "default"), validated.
 std::string FingertipParam(const HttpRequest& req);
+
+/// Who asks, for identification requests: ?robot=, else X-Robot-Id, else
+/// "http:<remote address>" (at most 128 characters).
+std::string Requester(const HttpRequest& req);
+
+/// The model a read route serves: ?version= (400 when not a positive
+/// integer, 404 when absent) or the newest, whose absence is a 404 that
+/// records an identification request (FrictionLibrary::RequireModel).
+std::shared_ptr<const CachedModel> ModelFor(FrictionLibrary& lib,
+                                            const HttpRequest& req);
 
 }  // namespace frictiond
