@@ -6,8 +6,8 @@ python3-scipy).
   paper000_ref.py ols --n N [--repeats R]
       Paper 000 eq. (1) by least squares on N simulated samples (same
       distribution as the C++ side: v ~ U(5, 80) mm/s, Fn ~ U(0.5, 4.5) N,
-      mu = 0.9 + 0.004 v - 0.06 Fn + N(0, 0.05)): numpy.linalg.lstsq, the
-      residual sigma, R^2, F and its p-value (scipy.stats.f.sf), the
+      mu = 0.9 + 0.004 v - 0.06 Fn + N(0, 0.05)): numpy.linalg.lstsq (its
+      residual sum of squares, no residual vector), the residual sigma, R^2, F and its p-value (scipy.stats.f.sf), the
       coefficient covariance and standard errors -- what frictiond's FitOls
       returns. Timed from the arrays in memory to the results.
       Prints {"ms": median wall time, "beta": [...]}.
@@ -41,11 +41,12 @@ def ols(n, repeats):
     beta = None
     for _ in range(repeats):
         t0 = time.perf_counter()
-        beta, _, rank, _ = np.linalg.lstsq(X, mu, rcond=None)
-        resid = mu - X @ beta
+        beta, ssr, rank, _ = np.linalg.lstsq(X, mu, rcond=None)
         k = X.shape[1]
         dof = n - rank
-        sse = float(resid @ resid)
+        # lstsq returns the residual sum of squares at full rank; the
+        # residuals themselves are not formed (as FitOls without them).
+        sse = float(ssr[0]) if ssr.size else float(((mu - X @ beta) ** 2).sum())
         sst = float(((mu - mu.mean()) ** 2).sum())
         r2 = 1.0 - sse / sst
         sigma2 = sse / dof

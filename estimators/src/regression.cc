@@ -248,8 +248,157 @@ Eigen::MatrixXd BuildDesign(const StrokeData& data,
   return X;
 }
 
+namespace {
+
+constexpr int kMomentBlock = 4096;
+
+// Sums and lower-triangle Gram matrix of rows [i0, i0 + len) of the C
+// columns shifted by `shift`, into sum[C] and gram[C*C] (row-major, u >= w).
+// Each of kLanes rows goes to its own accumulator so the loop vectorises
+// without reassociating sums.
+template <int C>
+inline __attribute__((always_inline)) void ShiftedMomentsKernel(
+    const double* const* col,
+    const double* shift,
+    int i0,
+    int len,
+    double* sum,
+    double* gram) {
+  constexpr int kLanes = 4;
+  constexpr int kPairs = C * (C + 1) / 2;
+  double acc[kPairs][kLanes] = {};
+  double s[C][kLanes] = {};
+  int i = i0;
+  const int end = i0 + len;
+  for (; i + kLanes <= end; i += kLanes) {
+    double x[C][kLanes];
+    for (int u = 0; u < C; ++u) {
+      for (int l = 0; l < kLanes; ++l) {
+        x[u][l] = col[u][i + l] - shift[u];
+        s[u][l] += x[u][l];
+      }
+    }
+    int k = 0;
+    for (int u = 0; u < C; ++u) {
+      for (int w = 0; w <= u; ++w, ++k) {
+        for (int l = 0; l < kLanes; ++l) acc[k][l] += x[u][l] * x[w][l];
+      }
+    }
+  }
+  for (; i < end; ++i) {
+    double x[C];
+    for (int u = 0; u < C; ++u) x[u] = col[u][i] - shift[u];
+    int k = 0;
+    for (int u = 0; u < C; ++u) {
+      s[u][0] += x[u];
+      for (int w = 0; w <= u; ++w, ++k) acc[k][0] += x[u] * x[w];
+    }
+  }
+  int k = 0;
+  for (int u = 0; u < C; ++u) {
+    sum[u] = 0.0;
+    for (int l = 0; l < kLanes; ++l) sum[u] += s[u][l];
+    for (int w = 0; w <= u; ++w, ++k) {
+      gram[u * C + w] = 0.0;
+      for (int l = 0; l < kLanes; ++l) gram[u * C + w] += acc[k][l];
+    }
+  }
+}
+
+// Any column count (the designs diagnosis builds can be wide).
+void ShiftedMomentsGeneric(const double* const* col,
+                           const double* shift,
+                           int c,
+                           int i0,
+                           int len,
+                           double* sum,
+                           double* gram) {
+  Eigen::MatrixXd B(len, c);
+  for (int u = 0; u < c; ++u) {
+    B.col(u) = Eigen::Map<const Eigen::ArrayXd>(col[u] + i0, len) - shift[u];
+    sum[u] = B.col(u).sum();
+  }
+  const Eigen::MatrixXd G = B.transpose() * B;
+  for (int u = 0; u < c; ++u) {
+    for (int w = 0; w <= u; ++w) gram[u * c + w] = G(u, w);
+  }
+}
+
+// Column count -> kernel; always inlined, so each caller below compiles
+// the kernels for its own instruction set.
+inline __attribute__((always_inline)) void DispatchShiftedMoments(
+    const double* const* col,
+    const double* shift,
+    int c,
+    int i0,
+    int len,
+    double* sum,
+    double* gram) {
+  switch (c) {
+    case 1:
+      return ShiftedMomentsKernel<1>(col, shift, i0, len, sum, gram);
+    case 2:
+      return ShiftedMomentsKernel<2>(col, shift, i0, len, sum, gram);
+    case 3:
+      return ShiftedMomentsKernel<3>(col, shift, i0, len, sum, gram);
+    case 4:
+      return ShiftedMomentsKernel<4>(col, shift, i0, len, sum, gram);
+    case 5:
+      return ShiftedMomentsKernel<5>(col, shift, i0, len, sum, gram);
+    default:
+      return ShiftedMomentsGeneric(col, shift, c, i0, len, sum, gram);
+  }
+}
+
+#if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
+// The same kernels compiled for AVX2 + FMA (4 doubles per instruction
+// instead of SSE2's 2), chosen at run time when the CPU has them.
+__attribute__((target("avx2,fma"))) void ShiftedMomentsAvx2(
+    const double* const* col,
+    const double* shift,
+    int c,
+    int i0,
+    int len,
+    double* sum,
+    double* gram) {
+  DispatchShiftedMoments(col, shift, c, i0, len, sum, gram);
+}
+
+bool HasAvx2() {
+  static const bool has =
+      __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+  return has;
+}
+#endif
+
+void ShiftedMomentsBaseline(const double* const* col,
+                            const double* shift,
+                            int c,
+                            int i0,
+                            int len,
+                            double* sum,
+                            double* gram) {
+  DispatchShiftedMoments(col, shift, c, i0, len, sum, gram);
+}
+
+void AccumulateShiftedMoments(const double* const* col,
+                              const double* shift,
+                              int c,
+                              int i0,
+                              int len,
+                              double* sum,
+                              double* gram) {
+#if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
+  if (HasAvx2()) return ShiftedMomentsAvx2(col, shift, c, i0, len, sum, gram);
+#endif
+  ShiftedMomentsBaseline(col, shift, c, i0, len, sum, gram);
+}
+
+}  // namespace
+
 OlsResult FitOls(const Eigen::Ref<const Eigen::MatrixXd>& X,
-                 const Eigen::Ref<const Eigen::VectorXd>& y) {
+                 const Eigen::Ref<const Eigen::VectorXd>& y,
+                 const OlsOptions& options) {
   OlsResult r;
   const int n = static_cast<int>(X.rows());
   const int p = static_cast<int>(X.cols());
@@ -264,36 +413,50 @@ OlsResult FitOls(const Eigen::Ref<const Eigen::MatrixXd>& X,
             " terms (need at least terms + 2)";
     return r;
   }
-  // One pass over [X y] in row blocks that stay in cache (memory-bound at
-  // 1e6 rows, so every extra pass costs as much as the arithmetic): block
-  // sums and Gram matrix of the data shifted by the first block's mean. The
-  // shifted-data algorithm keeps the cancellation of the final centring
-  // small, and the block also tells which column is all ones.
-  constexpr int kBlock = 2048;
-  const int first = std::min(n, kBlock);
+  // One pass over [X y] (memory-bound at 1e6 rows, so every extra pass
+  // costs as much as the arithmetic): sums and Gram matrix of the data
+  // shifted by the first block's mean, accumulated block by block (see
+  // AccumulateShiftedMoments). The shifted-data algorithm keeps the
+  // cancellation of the final centring small. A column of ones is not read
+  // by that pass (its shifted values are all 0) once a check has seen it is
+  // all ones.
+  const int first = std::min(n, kMomentBlock);
   Eigen::RowVectorXd shift(p + 1);
   shift.head(p) = X.topRows(first).colwise().mean();
   shift(p) = y.head(first).mean();
+  std::vector<bool> all_ones(p, false);
+  std::vector<const double*> columns;
+  std::vector<int> column_index;
+  for (int k = 0; k <= p; ++k) {
+    if (k < p && shift(k) == 1.0 &&
+        std::all_of(X.col(k).data(), X.col(k).data() + n, [](double x) {
+          return x == 1.0;
+        })) {
+      all_ones[k] = true;  // shifted values all exactly 0
+      continue;
+    }
+    columns.push_back(k < p ? X.col(k).data() : y.data());
+    column_index.push_back(k);
+  }
+  const int c = static_cast<int>(columns.size());
+  std::vector<double> column_shift(c);
+  for (int j = 0; j < c; ++j) column_shift[j] = shift(column_index[j]);
+  std::vector<double> block_sum(c), block_gram(c * c);
   Eigen::VectorXd sum = Eigen::VectorXd::Zero(p + 1);
   Eigen::MatrixXd S = Eigen::MatrixXd::Zero(p + 1, p + 1);
-  std::vector<bool> all_ones(p, true);
-  // Column u of [X y] rows i0..i0+len-1 (no copy; columns are contiguous).
-  const auto column = [&](int u, int i0, int len) {
-    const double* data = u < p ? X.col(u).data() : y.data();
-    return Eigen::Map<const Eigen::ArrayXd>(data + i0, len);
-  };
-  for (int i0 = 0; i0 < n; i0 += kBlock) {
-    const int len = std::min(kBlock, n - i0);
-    for (int k = 0; k < p; ++k) {
-      if (all_ones[k]) all_ones[k] = (column(k, i0, len) == 1.0).all();
-    }
-    // The block is read from cache by the (p+1)(p+2)/2 products, not from
-    // memory.
-    for (int w = 0; w <= p; ++w) {
-      const auto cw = column(w, i0, len) - shift(w);
-      sum(w) += cw.sum();
-      for (int u = w; u <= p; ++u)
-        S(u, w) += ((column(u, i0, len) - shift(u)) * cw).sum();
+  for (int i0 = 0; i0 < n; i0 += kMomentBlock) {
+    const int len = std::min(kMomentBlock, n - i0);
+    AccumulateShiftedMoments(columns.data(),
+                             column_shift.data(),
+                             c,
+                             i0,
+                             len,
+                             block_sum.data(),
+                             block_gram.data());
+    for (int u = 0; u < c; ++u) {
+      sum(column_index[u]) += block_sum[u];
+      for (int w = 0; w <= u; ++w)
+        S(column_index[u], column_index[w]) += block_gram[u * c + w];
     }
   }
   S = S.selfadjointView<Eigen::Lower>();
@@ -381,8 +544,15 @@ OlsResult FitOls(const Eigen::Ref<const Eigen::MatrixXd>& X,
     r.identified[intercept] = true;
   }
   const int p_eff = m + (intercept >= 0 ? 1 : 0);
-  r.residuals.noalias() = y - X * r.beta;
-  const double rss = r.residuals.squaredNorm();
+  double rss = 0.0;
+  if (options.residuals) {
+    r.residuals.noalias() = y - X * r.beta;
+    rss = r.residuals.squaredNorm();
+  } else {
+    // From the moments: rss = M_yy - g' G^-1 g (the normal equations'
+    // residual sum of squares in the standardised coordinates).
+    rss = std::max(0.0, M(p, p) - (m > 0 ? gk.dot(bz) : 0.0));
+  }
   const double tss = std::max(0.0, M(p, p));
   r.dof = n - p_eff;
   const double s2 = rss / std::max(1, r.dof);

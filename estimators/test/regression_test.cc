@@ -6,6 +6,9 @@
 
 #include <cmath>
 #include <random>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -54,6 +57,59 @@ TEST(FitOls, RecoversTruthWithinStandardErrorsAtOddSizes) {
     EXPECT_NEAR(r.residuals.squaredNorm(),
                 (d.y - d.X * ref).squaredNorm(),
                 1e-9 * (d.y - d.X * ref).squaredNorm());
+  }
+}
+
+// Every design shape the moment kernels distinguish: intercept first or in
+// the middle, none, a column whose first block is all ones but not the rest
+// (must not be taken for the intercept), and a design wider than the
+// unrolled kernels. Statistics with and without the residual vector agree.
+TEST(FitOls, KernelsAndStatisticsWithoutResidualsMatchQr) {
+  for (int n : {9, 4097, 10001}) {
+    const Data base = MakeData(n, 0.0, 20 + n);
+    std::vector<std::pair<std::string, Data>> cases;
+    cases.push_back({"intercept first", base});
+    Data middle = base;
+    middle.X.col(0).swap(middle.X.col(2));
+    cases.push_back({"intercept in the middle", middle});
+    Data none = base;
+    none.X = base.X.rightCols(3).eval();
+    cases.push_back({"no intercept", none});
+    Data almost = base;
+    almost.X.col(0).setOnes();
+    almost.X(n - 1, 0) = 2.0;  // not a column of ones after all
+    almost.X.col(2).setOnes();
+    cases.push_back({"ones only at first", almost});
+    Data wide = base;
+    wide.X.conservativeResize(n, 7);
+    std::mt19937_64 rng(n);
+    std::normal_distribution<double> z(0.0, 1.0);
+    for (int k = 4; k < 7; ++k)
+      for (int i = 0; i < n; ++i) wide.X(i, k) = z(rng) + k;
+    cases.push_back({"wide", wide});
+    for (const auto& [name, d] : cases) {
+      const OlsResult with = FitOls(d.X, d.y);
+      const OlsResult without = FitOls(d.X, d.y, OlsOptions{false});
+      ASSERT_EQ(with.status, FitStatus::kOk) << name << " n " << n;
+      ASSERT_EQ(without.status, FitStatus::kOk) << name << " n " << n;
+      EXPECT_EQ(without.residuals.size(), 0) << name;
+      const Eigen::VectorXd ref = QrBeta(d);
+      const double rss = (d.y - d.X * ref).squaredNorm();
+      for (int k = 0; k < d.X.cols(); ++k) {
+        EXPECT_NEAR(with.beta(k), ref(k), 1e-9 * (1 + std::abs(ref(k))))
+            << name << " n " << n << " k " << k;
+        EXPECT_NEAR(
+            without.beta(k), with.beta(k), 1e-12 * (1 + std::abs(ref(k))))
+            << name << " n " << n << " k " << k;
+        EXPECT_NEAR(without.std_err(k), with.std_err(k), 1e-9 * with.std_err(k))
+            << name << " n " << n << " k " << k;
+      }
+      EXPECT_NEAR(with.residuals.squaredNorm(), rss, 1e-9 * rss) << name;
+      EXPECT_NEAR(without.sigma_eps, with.sigma_eps, 1e-9 * with.sigma_eps)
+          << name << " n " << n;
+      EXPECT_NEAR(without.r2, with.r2, 1e-9) << name << " n " << n;
+      EXPECT_NEAR(without.p_value, with.p_value, 1e-9) << name;
+    }
   }
 }
 

@@ -98,13 +98,24 @@ struct OlsResult {
   int dof = 0;  ///< n - identified terms
 };
 
+/// What FitOls computes besides the coefficients and their statistics.
+struct OlsOptions {
+  /// Fill OlsResult::residuals (one more pass over X, and n doubles). When
+  /// false, the residual sum of squares comes from the moments of the one
+  /// pass (relative error ~1e-12 of the total sum of squares) and
+  /// `residuals` stays empty.
+  bool residuals = true;
+};
+
 /// Least squares of y on the columns of X. Column 0 may be an intercept (a
 /// column of ones); columns that are (numerically) constant or collinear with
 /// earlier ones are not identified: their coefficient is fixed at 0 and the
 /// status is kPartial. Solved through the normal equations of centred and
-/// scaled columns with a pivoted QR rank check, so 1e6 x 3 takes one pass.
+/// scaled columns with a pivoted QR rank check, so 1e6 x 3 takes one pass
+/// (two with residuals).
 OlsResult FitOls(const Eigen::Ref<const Eigen::MatrixXd>& X,
-                 const Eigen::Ref<const Eigen::VectorXd>& y);
+                 const Eigen::Ref<const Eigen::VectorXd>& y,
+                 const OlsOptions& options = {});
 
 /// Time since the current slip episode began, per sample [s]: 0 at the first
 /// slip sample of an episode (a run of slip == 1 within one stroke), growing
