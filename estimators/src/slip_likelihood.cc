@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace frictiond {
@@ -107,61 +108,63 @@ ConditionalSlipLikelihood FitConditionalSlipLikelihood(
   ConditionalSlipLikelihood out;
   out.step_n = options.step_n;
   out.window_n = options.window_n;
-  // Finite samples, sorted by Fn so each window is a contiguous range.
-  std::vector<std::size_t> order;
-  order.reserve(fn_n.size());
+  // Fn range of the finite samples.
+  double fn_lo = std::numeric_limits<double>::infinity(), fn_hi = -fn_lo;
   for (std::size_t i = 0; i < fn_n.size(); ++i) {
-    if (std::isfinite(fn_n[i]) && std::isfinite(ratio[i])) order.push_back(i);
+    if (!std::isfinite(fn_n[i]) || !std::isfinite(ratio[i])) continue;
+    fn_lo = std::min(fn_lo, fn_n[i]);
+    fn_hi = std::max(fn_hi, fn_n[i]);
   }
-  if (order.empty()) {
+  if (!(fn_lo <= fn_hi)) {
     out.why = "no finite samples";
     return out;
   }
-  std::sort(order.begin(), order.end(), [&fn_n](std::size_t a, std::size_t b) {
-    return fn_n[a] < fn_n[b];
-  });
   const double half = 0.5 * options.window_n;
+  const double step = options.step_n;
   double first = options.fn_min_n, last = options.fn_max_n;
   if (std::isnan(first)) {
     // Centres on the grid of multiples of step_n, half a window inside the
     // data's Fn range (rounded to the nearest grid point).
-    const double step = options.step_n;
-    first = step * std::round((fn_n[order.front()] + half) / step);
-    last = step * std::round((fn_n[order.back()] - half) / step);
-    if (last < first) {
-      first = last =
-          step *
-          std::round(0.5 * (fn_n[order.front()] + fn_n[order.back()]) / step);
-    }
+    first = step * std::round((fn_lo + half) / step);
+    last = step * std::round((fn_hi - half) / step);
+    if (last < first)
+      first = last = step * std::round(0.5 * (fn_lo + fn_hi) / step);
   }
-  const double span = (last - first) / options.step_n;
+  const double span = (last - first) / step;
   if (!(span < options.max_windows)) {
     throw std::invalid_argument(
         "window centres from " + Num(first) + " to " + Num(last) +
-        " N every step_n = " + Num(options.step_n) +
+        " N every step_n = " + Num(step) +
         " N exceed max_windows = " + std::to_string(options.max_windows));
   }
   const int n_windows = static_cast<int>(std::floor(span + 1e-9)) + 1;
-  std::vector<double> r;
-  std::vector<int> s;
+  std::vector<SlipWindowFit> windows(n_windows);
   for (int w = 0; w < n_windows; ++w) {
-    SlipWindowFit win;
-    win.fn_center_n = first + w * options.step_n;
-    win.fn_lo_n = win.fn_center_n - half;
-    win.fn_hi_n = win.fn_center_n + half;
-    auto lo = std::lower_bound(
-        order.begin(),
-        order.end(),
-        win.fn_lo_n,
-        [&fn_n](std::size_t i, double x) { return fn_n[i] < x; });
-    r.clear();
-    s.clear();
-    for (auto it = lo; it != order.end() && fn_n[*it] < win.fn_hi_n; ++it) {
-      r.push_back(ratio[*it]);
-      s.push_back(slip[*it] != 0);
-      win.slipping += slip[*it] != 0;
+    windows[w].fn_center_n = first + w * step;
+    windows[w].fn_lo_n = windows[w].fn_center_n - half;
+    windows[w].fn_hi_n = windows[w].fn_center_n + half;
+  }
+  // Each sample goes straight to the few windows that hold it (lo <= Fn <
+  // hi), found from its Fn on the centre grid: no sort by Fn.
+  std::vector<std::vector<double>> r(n_windows);
+  std::vector<std::vector<int>> s(n_windows);
+  for (std::size_t i = 0; i < fn_n.size(); ++i) {
+    if (!std::isfinite(fn_n[i]) || !std::isfinite(ratio[i])) continue;
+    const double x = fn_n[i];
+    const double w_lo = std::ceil((x - half - first) / step) - 1;
+    const double w_hi = std::floor((x + half - first) / step) + 1;
+    const int a = static_cast<int>(std::max(0.0, w_lo));
+    const int b = static_cast<int>(std::min(n_windows - 1.0, w_hi));
+    for (int w = a; w <= b; ++w) {
+      if (x < windows[w].fn_lo_n || !(x < windows[w].fn_hi_n)) continue;
+      r[w].push_back(ratio[i]);
+      s[w].push_back(slip[i] != 0);
+      windows[w].slipping += slip[i] != 0;
     }
-    win.samples = static_cast<int>(r.size());
+  }
+  for (int w = 0; w < n_windows; ++w) {
+    SlipWindowFit& win = windows[w];
+    win.samples = static_cast<int>(r[w].size());
     const int stick = win.samples - win.slipping;
     if (win.samples < options.min_samples) {
       win.fit.why = std::to_string(win.samples) + " samples (fewer than " +
@@ -172,8 +175,8 @@ ConditionalSlipLikelihood FitConditionalSlipLikelihood(
                     std::to_string(stick) + " stick samples (each must be >= " +
                     std::to_string(options.min_each_class) + ")";
     } else {
-      win.fit =
-          FitSlipLikelihood(r, s, options.never_level, options.always_level);
+      win.fit = FitSlipLikelihood(
+          r[w], s[w], options.never_level, options.always_level);
     }
     if (win.fit.valid) {
       out.knot_fn_n.push_back(win.fn_center_n);

@@ -120,4 +120,49 @@ double SortedQuantile(const std::vector<double>& sorted, double p) {
   return sorted[lo] + (h - lo) * (sorted[hi] - sorted[lo]);
 }
 
+std::vector<double> SelectQuantiles(std::vector<double>* x,
+                                    const std::vector<double>& levels) {
+  std::vector<double> out;
+  std::vector<double>& e = *x;
+  if (e.empty()) {
+    out.assign(levels.size(), std::numeric_limits<double>::quiet_NaN());
+    return out;
+  }
+  // The order statistics the quantiles interpolate between, placed by
+  // recursive multiple selection: select the middle one, then the ones
+  // below it in the left part and the ones above in the right part
+  // (O(n log k) for k order statistics, where one nth_element per statistic
+  // on the remaining tail would be O(n k)).
+  std::vector<std::size_t> order;
+  for (double p : levels) {
+    const double h = std::clamp(p, 0.0, 1.0) * (e.size() - 1);
+    order.push_back(static_cast<std::size_t>(std::floor(h)));
+    order.push_back(std::min(order.back() + 1, e.size() - 1));
+  }
+  std::sort(order.begin(), order.end());
+  order.erase(std::unique(order.begin(), order.end()), order.end());
+  struct Range {
+    std::size_t lo, hi;           // elements [lo, hi)
+    std::size_t first_k, last_k;  // order statistics order[first_k, last_k)
+  };
+  std::vector<Range> todo = {{0, e.size(), 0, order.size()}};
+  while (!todo.empty()) {
+    const Range r = todo.back();
+    todo.pop_back();
+    if (r.first_k >= r.last_k || r.hi - r.lo <= 1) continue;
+    const std::size_t mid = r.first_k + (r.last_k - r.first_k) / 2;
+    const std::size_t k = order[mid];
+    std::nth_element(e.begin() + r.lo, e.begin() + k, e.begin() + r.hi);
+    todo.push_back({r.lo, k, r.first_k, mid});
+    todo.push_back({k + 1, r.hi, mid + 1, r.last_k});
+  }
+  for (double p : levels) {
+    const double h = std::clamp(p, 0.0, 1.0) * (e.size() - 1);
+    const std::size_t a = static_cast<std::size_t>(std::floor(h));
+    const std::size_t b = std::min(a + 1, e.size() - 1);
+    out.push_back(e[a] + (h - a) * (e[b] - e[a]));
+  }
+  return out;
+}
+
 }  // namespace frictiond

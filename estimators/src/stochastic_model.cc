@@ -58,30 +58,12 @@ bool StochasticFitOptions::IsValid(std::string* why) const {
 namespace {
 
 void FillQuantiles(RegressionModel* m, const Eigen::VectorXd& residuals) {
-  // Only the order statistics the quantiles interpolate between are
-  // selected (successive nth_element on the shrinking tail), not a full sort.
-  std::vector<double> e(residuals.data(), residuals.data() + residuals.size());
   m->eps_quantiles.clear();
-  if (e.empty()) return;
-  std::vector<std::size_t> order;
-  for (double p : EpsQuantileLevels()) {
-    const double h = p * (e.size() - 1);
-    order.push_back(static_cast<std::size_t>(std::floor(h)));
-    order.push_back(std::min(order.back() + 1, e.size() - 1));
-  }
-  std::sort(order.begin(), order.end());
-  std::size_t done = 0;
-  for (std::size_t k : order) {
-    if (k < done) continue;  // duplicates
-    std::nth_element(e.begin() + done, e.begin() + k, e.end());
-    done = k + 1;
-  }
-  for (double p : EpsQuantileLevels()) {
-    const double h = p * (e.size() - 1);
-    const std::size_t a = static_cast<std::size_t>(std::floor(h));
-    const std::size_t b = std::min(a + 1, e.size() - 1);
-    m->eps_quantiles.push_back(e[a] + (h - a) * (e[b] - e[a]));
-  }
+  if (residuals.size() == 0) return;
+  std::vector<double> e(static_cast<std::size_t>(residuals.size()));
+  Eigen::Map<Eigen::VectorXd>(e.data(), residuals.size()) = residuals;
+  std::vector<double> q = SelectQuantiles(&e, EpsQuantileLevels());
+  m->eps_quantiles.swap(q);
   m->mae = residuals.cwiseAbs().mean();
 }
 
@@ -107,9 +89,9 @@ FitStatus FitRegression(const StrokeData& data,
     std::vector<double> x;
     x.reserve(rows.size());
     for (std::size_t r : rows) x.push_back((*col)[r]);
-    std::sort(x.begin(), x.end());
-    const double span = SortedQuantile(x, 0.95) - SortedQuantile(x, 0.05);
-    const double mag = std::fabs(SortedQuantile(x, 0.5));
+    const std::vector<double> q = SelectQuantiles(&x, {0.05, 0.5, 0.95});
+    const double span = q[2] - q[0];
+    const double mag = std::fabs(q[1]);
     if (!(span > min_relative_span * mag) || !(span > 0)) {
       unidentified.push_back(t.Name());
     } else {
@@ -189,31 +171,50 @@ SlipLikelihoodFit FitSlipLikelihood(const std::vector<double>& ratio,
   }
   // IRLS on the standardised ratio z = (r - mean)/sd: eta = a + b z.
   // A tiny ridge on b keeps separable data finite.
-  const double ridge = 1e-6 * n;
+  const Eigen::ArrayXd z = (Eigen::Map<const Eigen::ArrayXd>(
+                                ratio.data(), static_cast<Eigen::Index>(n)) -
+                            mean_r) /
+                           sd_r;
+  Eigen::ArrayXd y(static_cast<Eigen::Index>(n));
+  for (std::size_t i = 0; i < n; ++i) y(i) = slip[i] ? 1.0 : 0.0;
   Eigen::Vector2d w(std::log(double(n_slip) / (n - n_slip)), 0.0);
   Eigen::Matrix2d H;
-  for (int it = 0; it < 100; ++it) {
-    Eigen::Vector2d grad = Eigen::Vector2d::Zero();
-    H.setZero();
-    for (std::size_t i = 0; i < n; ++i) {
-      const double z = (ratio[i] - mean_r) / sd_r;
-      const double eta = w(0) + w(1) * z;
-      const double pi = 1.0 / (1.0 + std::exp(-eta));
-      const double wi = std::max(pi * (1 - pi), 1e-12);
-      const double ri = slip[i] - pi;
-      grad(0) += ri;
-      grad(1) += ri * z;
-      H(0, 0) += wi;
-      H(0, 1) += wi * z;
-      H(1, 1) += wi * z * z;
+  // Newton steps (vectorised: Eigen's exp works on whole packets) until the
+  // step is below `tol`. Convergence is quadratic near the optimum, so after
+  // a step of size tol the remaining error is of order tol^2.
+  auto newton = [&w, &H](const Eigen::ArrayXd& zv,
+                         const Eigen::ArrayXd& yv,
+                         double tol,
+                         int max_iterations) {
+    const double ridge = 1e-6 * zv.size();
+    for (int it = 0; it < max_iterations; ++it) {
+      const Eigen::ArrayXd pi = (1.0 + (-(w(0) + w(1) * zv)).exp()).inverse();
+      const Eigen::ArrayXd wi = (pi * (1.0 - pi)).max(1e-12);
+      const Eigen::ArrayXd ri = yv - pi;
+      const Eigen::ArrayXd wz = wi * zv;
+      const Eigen::Vector2d grad((ri).sum(), (ri * zv).sum() - ridge * w(1));
+      H << wi.sum(), wz.sum(), wz.sum(), (wz * zv).sum() + ridge;
+      const Eigen::Vector2d step = H.ldlt().solve(grad);
+      w += step;
+      if (step.norm() < tol) break;
     }
-    grad(1) -= ridge * w(1);
-    H(1, 1) += ridge;
-    H(1, 0) = H(0, 1);
-    const Eigen::Vector2d step = H.ldlt().solve(grad);
-    w += step;
-    if (step.norm() < 1e-10) break;
+  };
+  // On large sets, first converge on an evenly strided subsample: the full
+  // data then needs only the last few (quadratically converging) steps.
+  constexpr std::size_t kWarmSamples = 4096;
+  if (n >= 4 * kWarmSamples) {
+    const std::size_t stride = n / kWarmSamples;
+    const Eigen::Index m = static_cast<Eigen::Index>(n / stride);
+    const Eigen::ArrayXd zs =
+        Eigen::Map<const Eigen::ArrayXd, 0, Eigen::InnerStride<>>(
+            z.data(), m, Eigen::InnerStride<>(stride));
+    const Eigen::ArrayXd ys =
+        Eigen::Map<const Eigen::ArrayXd, 0, Eigen::InnerStride<>>(
+            y.data(), m, Eigen::InnerStride<>(stride));
+    if (ys.sum() > 0 && ys.sum() < m) newton(zs, ys, 1e-3, 100);
+    if (!w.allFinite()) w << std::log(double(n_slip) / (n - n_slip)), 0.0;
   }
+  newton(z, y, 1e-5, 100);  // error ~1e-10
   // Back to L = 1/(1+exp(-c1 (r - c2))).
   fit.c1 = w(1) / sd_r;
   fit.c2 = std::fabs(w(1)) > 0 ? mean_r - w(0) * sd_r / w(1) : mean_r;
@@ -250,16 +251,19 @@ StochasticFit FitStochasticModel(const StrokeData& input,
   const StrokeData& data = has_labels ? input : labelled;
   const std::vector<bool> mask = CalcFitMask(data, options.labelling);
   std::vector<std::size_t> rows;
-  std::set<int> strokes;
+  std::vector<int> strokes;
   for (std::size_t i = 0; i < data.size(); ++i) {
     if (mask[i]) {
       rows.push_back(i);
-      strokes.insert(data.stroke[i]);
+      if (strokes.empty() || strokes.back() != data.stroke[i])
+        strokes.push_back(data.stroke[i]);
     }
   }
+  std::sort(strokes.begin(), strokes.end());
   m.samples_total = static_cast<int>(data.size());
   m.samples_slip = static_cast<int>(rows.size());
-  m.strokes = static_cast<int>(strokes.size());
+  m.strokes = static_cast<int>(std::unique(strokes.begin(), strokes.end()) -
+                               strokes.begin());
   if (static_cast<int>(rows.size()) < options.min_slip_samples) {
     fit.status = FitStatus::kTooFewSamples;
     fit.why =

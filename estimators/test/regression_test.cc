@@ -4,6 +4,7 @@
 // non-finite input, and sizes that are not a multiple of the block.
 #include "frictiond/estimators/regression.h"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <string>
@@ -11,6 +12,8 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+
+#include "frictiond/estimators/stats.h"
 
 namespace frictiond {
 namespace {
@@ -156,6 +159,30 @@ TEST(FitOls, NonFiniteInputFailsNamingIt) {
   d.y(10) = INFINITY;
   r = FitOls(d.X, d.y);
   EXPECT_EQ(r.status, FitStatus::kFailed);
+}
+
+// SelectQuantiles (used for the eps distribution and the span checks)
+// gives exactly SortedQuantile's values, with ties, tiny and odd sizes.
+TEST(SelectQuantiles, EqualsSortedQuantile) {
+  std::mt19937_64 rng(11);
+  std::uniform_int_distribution<int> coarse(0, 9);
+  std::normal_distribution<double> fine(0.0, 1.0);
+  std::vector<double> levels = {0.0, 0.001, 0.05, 0.25, 0.5, 0.5, 0.75, 1.0};
+  for (int k = 1; k <= 99; k += 7) levels.push_back(k / 100.0);
+  std::sort(levels.begin(), levels.end());
+  for (int n : {1, 2, 3, 17, 1000, 20001}) {
+    for (bool ties : {false, true}) {
+      std::vector<double> x(n);
+      for (double& v : x) v = ties ? coarse(rng) : fine(rng);
+      std::vector<double> sorted = x;
+      std::sort(sorted.begin(), sorted.end());
+      const std::vector<double> q = SelectQuantiles(&x, levels);
+      ASSERT_EQ(q.size(), levels.size());
+      for (std::size_t j = 0; j < levels.size(); ++j)
+        EXPECT_EQ(q[j], SortedQuantile(sorted, levels[j]))
+            << "n " << n << " ties " << ties << " p " << levels[j];
+    }
+  }
 }
 
 }  // namespace

@@ -19,5 +19,10 @@ double FUpperP(double f, double d1, double d2);
 /// Empirical quantile of `sorted` (ascending) at probability p in [0, 1],
 /// linear interpolation between order statistics (type 7).
 double SortedQuantile(const std::vector<double>& sorted, double p);
+/// The same quantiles as SortedQuantile of sorted(x) at each of `levels`
+/// (ascending, in [0, 1]), found by selection (expected O(n) for a handful
+/// of levels) instead of a sort. `x` is reordered.
+std::vector<double> SelectQuantiles(std::vector<double>* x,
+                                    const std::vector<double>& levels);
 
 }  // namespace frictiond
