@@ -113,7 +113,10 @@ def identify(csv, peak, floor, window_s, repeats):
     hull of the slipping (Fn, v) samples against the plan's reference span."""
     d = np.genfromtxt(csv, delimiter=",", names=True)
     t, fn, ft, v = d["t_s"], d["fn_n"], d["ft_n"], d["v_mm_s"]
-    levels = np.linspace(0.005, 0.995, 21)
+    # frictiond's EpsQuantileLevels(): the stored eps distribution.
+    levels = np.array([0.001, 0.0025, 0.005, 0.0075] +
+                      [k / 100.0 for k in range(1, 100)] +
+                      [0.9925, 0.995, 0.9975, 0.999])
     times = []
     out = {}
     for _ in range(repeats):
@@ -137,7 +140,8 @@ def identify(csv, peak, floor, window_s, repeats):
         X = np.column_stack([np.ones(mask.sum()), v[mask], fn[mask]])
         beta, resid, se = _ols_stats(X, mu[mask])
         q = np.quantile(resid, levels)
-        beta_fn, _, _ = _ols_stats(X[:, [0, 2]], mu[mask])
+        beta_fn, resid_fn, _ = _ols_stats(X[:, [0, 2]], mu[mask])
+        q_fn = np.quantile(resid_fn, levels)
         ok = np.isfinite(mu)
         c1, c2 = _irls(mu[ok], slip[ok].astype(float))
         windows = []
@@ -146,7 +150,9 @@ def identify(csv, peak, floor, window_s, repeats):
             w = ok & (np.abs(fn - c) <= 0.3)
             n_slip = int(slip[w].sum())
             if w.sum() >= 40 and n_slip >= 5 and w.sum() - n_slip >= 5:
-                windows.append((c,) + _irls(mu[w], slip[w].astype(float)))
+                c1_w, c2_w = _irls(mu[w], slip[w].astype(float))
+                if c1_w > 0:  # a knot only where L rises with Ft/Fn
+                    windows.append((c, c1_w, c2_w))
         pts = np.column_stack([np.clip(fn[mask], 0.5, 4.5),
                                np.clip(v[mask], 15.0, 80.0)])
         try:
@@ -158,7 +164,7 @@ def identify(csv, peak, floor, window_s, repeats):
         out = {"beta": [float(b) for b in beta], "strokes": int(stroke[-1]) + 1,
                "slip": int(mask.sum()), "c1": float(c1), "c2": float(c2),
                "windows": len(windows), "span_pct": span_pct,
-               "eps_q50": float(q[10]), "se": [float(x) for x in se],
+               "eps_q50": float(q[53]), "eps_fn_q50": float(q_fn[53]), "se": [float(x) for x in se],
                "beta_fn": [float(b) for b in beta_fn]}
     out["ms"] = 1e3 * float(np.median(times))
     print(json.dumps(out))

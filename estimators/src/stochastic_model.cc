@@ -187,13 +187,27 @@ SlipLikelihoodFit FitSlipLikelihood(const std::vector<double>& ratio,
                          double tol,
                          int max_iterations) {
     const double ridge = 1e-6 * zv.size();
+    // Blocks small enough to stay in L1, on the stack (no n-sized
+    // temporaries per iteration).
+    constexpr Eigen::Index kBlock = 512;
+    using BlockArray = Eigen::Array<double, Eigen::Dynamic, 1, 0, kBlock, 1>;
     for (int it = 0; it < max_iterations; ++it) {
-      const Eigen::ArrayXd pi = (1.0 + (-(w(0) + w(1) * zv)).exp()).inverse();
-      const Eigen::ArrayXd wi = (pi * (1.0 - pi)).max(1e-12);
-      const Eigen::ArrayXd ri = yv - pi;
-      const Eigen::ArrayXd wz = wi * zv;
-      const Eigen::Vector2d grad((ri).sum(), (ri * zv).sum() - ridge * w(1));
-      H << wi.sum(), wz.sum(), wz.sum(), (wz * zv).sum() + ridge;
+      Eigen::Vector2d grad = Eigen::Vector2d::Zero();
+      double h00 = 0.0, h01 = 0.0, h11 = 0.0;
+      for (Eigen::Index b0 = 0; b0 < zv.size(); b0 += kBlock) {
+        const Eigen::Index len = std::min(kBlock, zv.size() - b0);
+        const auto zb = zv.segment(b0, len);
+        const BlockArray pi = (1.0 + (-(w(0) + w(1) * zb)).exp()).inverse();
+        const BlockArray wi = (pi * (1.0 - pi)).max(1e-12);
+        const BlockArray ri = yv.segment(b0, len) - pi;
+        grad(0) += ri.sum();
+        grad(1) += (ri * zb).sum();
+        h00 += wi.sum();
+        h01 += (wi * zb).sum();
+        h11 += (wi * zb * zb).sum();
+      }
+      grad(1) -= ridge * w(1);
+      H << h00, h01, h01, h11 + ridge;
       const Eigen::Vector2d step = H.ldlt().solve(grad);
       w += step;
       if (step.norm() < tol) break;
