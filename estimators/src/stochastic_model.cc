@@ -5,6 +5,7 @@
 #include <set>
 #include <stdexcept>
 
+#include "frictiond/estimators/robust_covariance.h"
 #include "frictiond/estimators/stats.h"
 
 namespace frictiond {
@@ -124,6 +125,26 @@ FitStatus FitRegression(const StrokeData& data,
     out->std_err(index[a]) = ols.std_err(a);
     for (std::size_t b = 0; b < kept.size(); ++b)
       out->P_beta(index[a], index[b]) = ols.P_beta(a, b);
+  }
+  // Stroke-clustered standard errors beside the i.i.d. ones.
+  std::vector<int> cluster;
+  if (data.stroke.size() == data.size()) {
+    cluster.reserve(rows.size());
+    for (std::size_t r : rows) cluster.push_back(data.stroke[r]);
+    std::vector<int> ids = cluster;
+    std::sort(ids.begin(), ids.end());
+    out->stroke_clusters =
+        static_cast<int>(std::unique(ids.begin(), ids.end()) - ids.begin());
+  }
+  out->std_err_stroke.resize(0);
+  if (out->stroke_clusters >= 2) {
+    const Eigen::MatrixXd P =
+        CalcClusterRobustCovariance(X, ols.residuals, cluster);
+    out->std_err_stroke = Eigen::VectorXd::Zero(p);
+    for (std::size_t a = 0; a < kept.size(); ++a) {
+      if (ols.identified[a])
+        out->std_err_stroke(index[a]) = std::sqrt(std::max(0.0, P(a, a)));
+    }
   }
   out->unidentified = unidentified;
   out->sigma_eps = ols.sigma_eps;

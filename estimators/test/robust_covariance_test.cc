@@ -81,6 +81,39 @@ TEST(RobustCovariance, AgreesWithOlsUnderWhiteNoise) {
   EXPECT_GE(c.robust, 0.8 * kSeeds);
 }
 
+// The served model (FitStochasticModel) carries the stroke-clustered
+// standard errors: same numbers as computed here directly, and intervals
+// from them cover the truth where the i.i.d. ones do not.
+TEST(RobustCovariance, ServedModelCarriesStrokeClusteredErrors) {
+  testing::SimulationSpec spec;
+  spec.strokes = 20;
+  spec.ar_rho = 0.95;
+  spec.stroke_offset_sd = 0.03;
+  const int kSeeds = 40;
+  int covered_iid = 0, covered_stroke = 0;
+  for (int seed = 1; seed <= kSeeds; ++seed) {
+    const StochasticFit fit =
+        FitStochasticModel(testing::SimulateStrokes(spec, 2000 + seed));
+    ASSERT_EQ(fit.status, FitStatus::kOk) << fit.why;
+    const RegressionModel& m = fit.model.mu;
+    ASSERT_EQ(m.std_err_stroke.size(), m.std_err.size());
+    EXPECT_EQ(m.stroke_clusters, fit.model.strokes);
+    const int b2 = m.FindTerm("fn_n");
+    ASSERT_GE(b2, 0);
+    EXPECT_GT(m.std_err_stroke(b2), 2.0 * m.std_err(b2)) << "seed " << seed;
+    const double err = std::fabs(m.beta(b2) - spec.b2);
+    covered_iid += err < 1.96 * m.std_err(b2);
+    covered_stroke += err < 2.09 * m.std_err_stroke(b2);
+  }
+  EXPECT_LT(covered_iid, 0.6 * kSeeds) << covered_iid << "/" << kSeeds;
+  EXPECT_GE(covered_stroke, 0.85 * kSeeds) << covered_stroke << "/" << kSeeds;
+  // One stroke: no clustered errors (not enough clusters), not zeros.
+  spec.strokes = 1;
+  const StochasticFit one =
+      FitStochasticModel(testing::SimulateStrokes(spec, 1));
+  EXPECT_EQ(one.model.mu.std_err_stroke.size(), 0);
+}
+
 TEST(RobustCovariance, DegenerateInputs) {
   Eigen::MatrixXd X(3, 2);
   X << 1, 1, 1, 2, 1, 3;

@@ -49,6 +49,13 @@ json RegressionModelToJson(const RegressionModel& m) {
   }
   j["coefficients"] = coef;
   j["std_errors"] = se;
+  if (m.std_err_stroke.size() == static_cast<Eigen::Index>(m.terms.size())) {
+    json se_stroke = json::object();
+    for (std::size_t k = 0; k < m.terms.size(); ++k)
+      se_stroke[m.terms[k].Name()] = m.std_err_stroke(k);
+    j["std_errors_stroke"] = se_stroke;
+    j["stroke_clusters"] = m.stroke_clusters;
+  }
   json cov = json::array();
   for (int a = 0; a < m.P_beta.rows(); ++a) {
     json row = json::array();
@@ -94,6 +101,16 @@ RegressionModel RegressionModelFromJson(const json& j,
     m.beta(k) = GetNumber(coef, names[k], where + ".coefficients");
     if (j.contains("std_errors"))
       m.std_err(k) = GetNumberOr(j["std_errors"], names[k], 0.0);
+  }
+  if (j.contains("std_errors_stroke")) {
+    const json& se_stroke = j["std_errors_stroke"];
+    if (!se_stroke.is_object())
+      throw std::invalid_argument(where +
+                                  ".std_errors_stroke: expected an object");
+    m.std_err_stroke = Eigen::VectorXd::Zero(p);
+    for (int k = 0; k < p; ++k)
+      m.std_err_stroke(k) = GetNumberOr(se_stroke, names[k], 0.0);
+    m.stroke_clusters = static_cast<int>(GetNumberOr(j, "stroke_clusters", 0));
   }
   if (j.contains("covariance") && j["covariance"].contains("matrix")) {
     const json& mat = j["covariance"]["matrix"];

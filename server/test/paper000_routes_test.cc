@@ -220,6 +220,27 @@ TEST_F(Paper000RoutesTest, SpanVariabilityBins) {
   ExpectBad(path, {{"what", "1"}}, "what");
 }
 
+// Strokes with correlated noise and per-stroke offsets: the served model
+// carries stroke-clustered standard errors beside the i.i.d. ones, and they
+// are the larger (the i.i.d. ones under-cover on such data), stored and read
+// back unchanged.
+TEST_F(Paper000RoutesTest, ModelServesStrokeClusteredStandardErrors) {
+  testing::SimulationSpec spec;
+  spec.strokes = 12;
+  spec.ar_rho = 0.95;
+  spec.stroke_offset_sd = 0.03;
+  Upload("rubber", spec);
+  const json model = GetOk("/v1/materials/rubber/model", {});
+  const json& mu = model.at("stochastic");
+  ASSERT_TRUE(mu.contains("std_errors_stroke")) << mu.dump();
+  EXPECT_EQ(mu.at("stroke_clusters").get<int>(), 12);
+  for (const char* term : {"v_mm_s", "fn_n"}) {
+    EXPECT_GT(mu["std_errors_stroke"][term].get<double>(),
+              2.0 * mu["std_errors"][term].get<double>())
+        << term << ": " << mu.dump();
+  }
+}
+
 TEST_F(Paper000RoutesTest, UnknownMaterialIs404) {
   const HttpResponse r = Get("/v1/materials/nothing/target-force",
                              {{"fn_n", "1"}, {"v_mm_s", "3"}});

@@ -46,8 +46,14 @@ const std::vector<double>& EpsQuantileLevels();
 struct RegressionModel {
   std::vector<Term> terms;  ///< regressors, terms[0] is usually the intercept
   Eigen::VectorXd beta;     ///< coefficients per term
-  Eigen::VectorXd std_err;  ///< standard errors per term
-  Eigen::MatrixXd P_beta;   ///< coefficient covariance
+  Eigen::VectorXd std_err;  ///< standard errors per term (i.i.d. eps)
+  Eigen::MatrixXd P_beta;   ///< coefficient covariance (i.i.d. eps)
+  /// Stroke-clustered (Liang-Zeger) standard errors per term, valid when eps
+  /// is correlated within a stroke or strokes carry offsets (see
+  /// robust_covariance.h); 0 for unidentified terms, empty when fewer than
+  /// 2 strokes were fitted. Trust them from ~10 strokes on.
+  Eigen::VectorXd std_err_stroke;
+  int stroke_clusters = 0;  ///< strokes behind std_err_stroke
   std::vector<std::string>
       unidentified;        ///< terms fixed at 0 (no span in their input)
   double sigma_eps = 0.0;  ///< residual standard deviation
