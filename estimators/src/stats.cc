@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <limits>
 
 namespace frictiond {
@@ -120,6 +122,46 @@ double SortedQuantile(const std::vector<double>& sorted, double p) {
   return sorted[lo] + (h - lo) * (sorted[hi] - sorted[lo]);
 }
 
+namespace {
+
+// Ascending sort of doubles (no NaN) by LSD radix on their order-preserving
+// 64-bit keys, 11 bits per pass; passes whose digit is the same for every
+// key are skipped (typically the sign and exponent ones).
+void RadixSort(std::vector<double>* values) {
+  std::vector<double>& x = *values;
+  const std::size_t n = x.size();
+  std::vector<std::uint64_t> key(n), tmp(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    std::uint64_t u;
+    std::memcpy(&u, &x[i], sizeof u);
+    // Negative: flip all bits; positive: flip the sign bit.
+    key[i] = (u >> 63) ? ~u : (u | (std::uint64_t{1} << 63));
+  }
+  constexpr int kBits = 11;
+  constexpr std::size_t kBuckets = std::size_t{1} << kBits;
+  std::vector<std::size_t> count(kBuckets);
+  for (int shift = 0; shift < 64; shift += kBits) {
+    std::fill(count.begin(), count.end(), 0);
+    for (std::uint64_t k : key) ++count[(k >> shift) & (kBuckets - 1)];
+    if (count[(key[0] >> shift) & (kBuckets - 1)] == n) continue;
+    std::size_t total = 0;
+    for (std::size_t& c : count) {
+      const std::size_t here = c;
+      c = total;
+      total += here;
+    }
+    for (std::uint64_t k : key) tmp[count[(k >> shift) & (kBuckets - 1)]++] = k;
+    key.swap(tmp);
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint64_t k = key[i];
+    const std::uint64_t u = (k >> 63) ? (k & ~(std::uint64_t{1} << 63)) : ~k;
+    std::memcpy(&x[i], &u, sizeof u);
+  }
+}
+
+}  // namespace
+
 std::vector<double> SelectQuantiles(std::vector<double>* x,
                                     const std::vector<double>& levels) {
   std::vector<double> out;
@@ -141,6 +183,14 @@ std::vector<double> SelectQuantiles(std::vector<double>* x,
   }
   std::sort(order.begin(), order.end());
   order.erase(std::unique(order.begin(), order.end()), order.end());
+  const bool any_nan =
+      std::any_of(e.begin(), e.end(), [](double v) { return std::isnan(v); });
+  if (order.size() > 16 && e.size() > 4096 && !any_nan) {
+    // Many order statistics of a large set: a radix sort is cheaper than
+    // O(n log k) selection.
+    RadixSort(&e);
+    order.clear();
+  }
   struct Range {
     std::size_t lo, hi;           // elements [lo, hi)
     std::size_t first_k, last_k;  // order statistics order[first_k, last_k)
