@@ -546,18 +546,22 @@ class PgStore final : public Store {
     });
   }
 
-  std::optional<IdentificationJob> ClaimJob(
-      std::int64_t id, const std::string& worker) override {
+  std::optional<IdentificationJob> ClaimJobWithLease(std::int64_t id,
+                                                     const std::string& worker,
+                                                     int lease_s) override {
+    if (lease_s <= 0)
+      throw std::invalid_argument("lease_s = " + std::to_string(lease_s) +
+                                  " (must be > 0)");
     return Write([&](Tx& tx) -> std::optional<IdentificationJob> {
       // A job row locked by another daemon's claim is skipped, not waited
       // for: that daemon is taking it.
       const Result row = tx.Exec(
           std::string("SELECT claimed_by, updated_at < to_char((now() AT "
-                      "TIME ZONE 'UTC') - interval '60 seconds', "
+                      "TIME ZONE 'UTC') - make_interval(secs => $2), "
                       "'YYYY-MM-DD\"T\"HH24:MI:SS.MS\"Z\"') FROM jobs WHERE "
                       "id=$1 AND state IN ") +
               kOpenStates + " FOR UPDATE SKIP LOCKED",
-          Params().Int(id));
+          Params().Int(id).Int(lease_s));
       if (row.Rows() == 0) return std::nullopt;
       const std::string by = row.Text(0, 0);
       const bool expired = row.Text(0, 1) == "t";

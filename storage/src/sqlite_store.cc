@@ -604,12 +604,16 @@ class SqliteStore final : public Store {
     return out;
   }
 
-  std::optional<IdentificationJob> ClaimJob(
-      std::int64_t id, const std::string& worker) override {
+  std::optional<IdentificationJob> ClaimJobWithLease(std::int64_t id,
+                                                     const std::string& worker,
+                                                     int lease_s) override {
+    if (lease_s <= 0)
+      throw std::invalid_argument("lease_s = " + std::to_string(lease_s) +
+                                  " (must be > 0)");
     std::lock_guard<std::mutex> lock(mu_);
     Stmt(std::string("UPDATE jobs SET claimed_by=?, updated_at=? WHERE id=? "
                      "AND (claimed_by='' OR claimed_by=? OR updated_at < "
-                     "strftime('%Y-%m-%dT%H:%M:%fZ','now','-60 seconds')) "
+                     "strftime('%Y-%m-%dT%H:%M:%fZ','now',?)) "
                      "AND state IN ") +
          kOpenStates)
         .Reset()
@@ -617,6 +621,7 @@ class SqliteStore final : public Store {
         .Bind(NowIso8601())
         .Bind(id)
         .Bind(worker)
+        .Bind("-" + std::to_string(lease_s) + " seconds")
         .Run();
     if (sqlite3_changes(db_) == 0) return std::nullopt;
     return GetJobLocked(id);

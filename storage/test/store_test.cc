@@ -338,6 +338,24 @@ TEST_P(StoreTest, JobIsClaimedByOneWorker) {
   EXPECT_FALSE(store_->ClaimJob(job.id, "daemon-a"));  // closed
 }
 
+// A daemon that claimed a job and died (stopped renewing) loses it to
+// another daemon once the lease has run out, and not before.
+TEST_P(StoreTest, DeadWorkersClaimIsTakenOverAfterTheLease) {
+  IdentificationJob j;
+  j.material = "m";
+  j.plan_json = "{}";
+  const auto job = store_->RequestIdentification(j);
+  ASSERT_TRUE(store_->ClaimJobWithLease(job.id, "daemon-a", 1));
+  EXPECT_FALSE(store_->ClaimJobWithLease(job.id, "daemon-b", 1));  // alive
+  std::this_thread::sleep_for(std::chrono::milliseconds(1300));
+  EXPECT_TRUE(store_->ClaimJobWithLease(job.id, "daemon-b", 1));   // taken over
+  EXPECT_FALSE(store_->ClaimJobWithLease(job.id, "daemon-a", 1));  // lost
+  EXPECT_FALSE(store_->ClaimJob(job.id, "daemon-a"));  // 60 s lease: also
+  EXPECT_TRUE(store_->ClaimJob(job.id, "daemon-b"));   // renewed by its owner
+  EXPECT_THROW(store_->ClaimJobWithLease(job.id, "daemon-c", 0),
+               std::invalid_argument);
+}
+
 TEST(OpenStore, RejectsUnsupportedUrl) {
   // Unbuilt back end (invalid_argument) or unreachable server
   // (StoreUnavailable); either way no store.

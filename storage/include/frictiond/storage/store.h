@@ -185,15 +185,23 @@ class Store {
   virtual std::optional<IdentificationJob> GetJob(std::int64_t id) = 0;
   /// Jobs, newest first; `open_only` keeps requested/stroking/enough_coverage.
   virtual std::vector<IdentificationJob> ListJobs(bool open_only) = 0;
+  /// Seconds after which a claim that was not renewed may be taken over.
+  static constexpr int kClaimLeaseS = 60;
   /// Claims an open job for `worker` so that only one daemon of a fleet acts
   /// on it: succeeds when the job is open and unclaimed, already claimed by
-  /// `worker` (this renews the claim), or its claim was not renewed for 60 s
-  /// (its daemon died), atomically against other daemons (PostgreSQL:
-  /// SELECT ... FOR UPDATE SKIP LOCKED; SQLite: a conditional UPDATE).
+  /// `worker` (this renews the claim), or its claim (or last update) is
+  /// older than kClaimLeaseS (its daemon died), atomically against other
+  /// daemons (PostgreSQL: SELECT ... FOR UPDATE SKIP LOCKED; SQLite: a
+  /// conditional UPDATE).
   /// @return the claimed job, or nullopt when unknown, closed or claimed by
   /// another worker.
-  virtual std::optional<IdentificationJob> ClaimJob(
-      std::int64_t id, const std::string& worker) = 0;
+  std::optional<IdentificationJob> ClaimJob(std::int64_t id,
+                                            const std::string& worker) {
+    return ClaimJobWithLease(id, worker, kClaimLeaseS);
+  }
+  /// ClaimJob with another lease (> 0 s), e.g. a short one in tests.
+  virtual std::optional<IdentificationJob> ClaimJobWithLease(
+      std::int64_t id, const std::string& worker, int lease_s) = 0;
 
   // --- images ---------------------------------------------------------------
   virtual std::int64_t AddImage(const ImageRecord& image) = 0;
