@@ -252,29 +252,33 @@ namespace {
 
 constexpr int kMomentBlock = 4096;
 
-// Sums and lower-triangle Gram matrix of rows [i0, i0 + len) of the C
-// columns shifted by `shift`, into sum[C] and gram[C*C] (row-major, u >= w).
+// Rows [i0, i0 + len) of c columns, shifted by `shift`; their sums go to
+// sum[c] and the lower triangle of their Gram matrix to gram[c*c]
+// (row-major, u >= w).
+struct MomentBlock {
+  const double* const* col;
+  const double* shift;
+  int c, i0, len;
+  double* sum;
+  double* gram;
+};
+
 // Each of kLanes rows goes to its own accumulator so the loop vectorises
 // without reassociating sums.
 template <int C>
 inline __attribute__((always_inline)) void ShiftedMomentsKernel(
-    const double* const* col,
-    const double* shift,
-    int i0,
-    int len,
-    double* sum,
-    double* gram) {
+    const MomentBlock& b) {
   constexpr int kLanes = 4;
   constexpr int kPairs = C * (C + 1) / 2;
   double acc[kPairs][kLanes] = {};
   double s[C][kLanes] = {};
-  int i = i0;
-  const int end = i0 + len;
+  int i = b.i0;
+  const int end = b.i0 + b.len;
   for (; i + kLanes <= end; i += kLanes) {
     double x[C][kLanes];
     for (int u = 0; u < C; ++u) {
       for (int l = 0; l < kLanes; ++l) {
-        x[u][l] = col[u][i + l] - shift[u];
+        x[u][l] = b.col[u][i + l] - b.shift[u];
         s[u][l] += x[u][l];
       }
     }
@@ -287,7 +291,7 @@ inline __attribute__((always_inline)) void ShiftedMomentsKernel(
   }
   for (; i < end; ++i) {
     double x[C];
-    for (int u = 0; u < C; ++u) x[u] = col[u][i] - shift[u];
+    for (int u = 0; u < C; ++u) x[u] = b.col[u][i] - b.shift[u];
     int k = 0;
     for (int u = 0; u < C; ++u) {
       s[u][0] += x[u];
@@ -296,102 +300,67 @@ inline __attribute__((always_inline)) void ShiftedMomentsKernel(
   }
   int k = 0;
   for (int u = 0; u < C; ++u) {
-    sum[u] = 0.0;
-    for (int l = 0; l < kLanes; ++l) sum[u] += s[u][l];
+    b.sum[u] = 0.0;
+    for (int l = 0; l < kLanes; ++l) b.sum[u] += s[u][l];
     for (int w = 0; w <= u; ++w, ++k) {
-      gram[u * C + w] = 0.0;
-      for (int l = 0; l < kLanes; ++l) gram[u * C + w] += acc[k][l];
+      b.gram[u * C + w] = 0.0;
+      for (int l = 0; l < kLanes; ++l) b.gram[u * C + w] += acc[k][l];
     }
   }
 }
 
 // Any column count (the designs diagnosis builds can be wide).
-void ShiftedMomentsGeneric(const double* const* col,
-                           const double* shift,
-                           int c,
-                           int i0,
-                           int len,
-                           double* sum,
-                           double* gram) {
-  Eigen::MatrixXd B(len, c);
-  for (int u = 0; u < c; ++u) {
-    B.col(u) = Eigen::Map<const Eigen::ArrayXd>(col[u] + i0, len) - shift[u];
-    sum[u] = B.col(u).sum();
+void ShiftedMomentsGeneric(const MomentBlock& b) {
+  Eigen::MatrixXd B(b.len, b.c);
+  for (int u = 0; u < b.c; ++u) {
+    B.col(u) =
+        Eigen::Map<const Eigen::ArrayXd>(b.col[u] + b.i0, b.len) - b.shift[u];
+    b.sum[u] = B.col(u).sum();
   }
   const Eigen::MatrixXd G = B.transpose() * B;
-  for (int u = 0; u < c; ++u) {
-    for (int w = 0; w <= u; ++w) gram[u * c + w] = G(u, w);
+  for (int u = 0; u < b.c; ++u) {
+    for (int w = 0; w <= u; ++w) b.gram[u * b.c + w] = G(u, w);
   }
 }
 
 // Column count -> kernel; always inlined, so each caller below compiles
 // the kernels for its own instruction set.
 inline __attribute__((always_inline)) void DispatchShiftedMoments(
-    const double* const* col,
-    const double* shift,
-    int c,
-    int i0,
-    int len,
-    double* sum,
-    double* gram) {
-  switch (c) {
+    const MomentBlock& b) {
+  switch (b.c) {
     case 1:
-      return ShiftedMomentsKernel<1>(col, shift, i0, len, sum, gram);
+      return ShiftedMomentsKernel<1>(b);
     case 2:
-      return ShiftedMomentsKernel<2>(col, shift, i0, len, sum, gram);
+      return ShiftedMomentsKernel<2>(b);
     case 3:
-      return ShiftedMomentsKernel<3>(col, shift, i0, len, sum, gram);
+      return ShiftedMomentsKernel<3>(b);
     case 4:
-      return ShiftedMomentsKernel<4>(col, shift, i0, len, sum, gram);
+      return ShiftedMomentsKernel<4>(b);
     case 5:
-      return ShiftedMomentsKernel<5>(col, shift, i0, len, sum, gram);
+      return ShiftedMomentsKernel<5>(b);
     default:
-      return ShiftedMomentsGeneric(col, shift, c, i0, len, sum, gram);
+      return ShiftedMomentsGeneric(b);
   }
 }
+
+void ShiftedMomentsBaseline(const MomentBlock& b) { DispatchShiftedMoments(b); }
 
 #if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
 // The same kernels compiled for AVX2 + FMA (4 doubles per instruction
 // instead of SSE2's 2), chosen at run time when the CPU has them.
 __attribute__((target("avx2,fma"))) void ShiftedMomentsAvx2(
-    const double* const* col,
-    const double* shift,
-    int c,
-    int i0,
-    int len,
-    double* sum,
-    double* gram) {
-  DispatchShiftedMoments(col, shift, c, i0, len, sum, gram);
-}
-
-bool HasAvx2() {
-  static const bool has =
-      __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-  return has;
+    const MomentBlock& b) {
+  DispatchShiftedMoments(b);
 }
 #endif
 
-void ShiftedMomentsBaseline(const double* const* col,
-                            const double* shift,
-                            int c,
-                            int i0,
-                            int len,
-                            double* sum,
-                            double* gram) {
-  DispatchShiftedMoments(col, shift, c, i0, len, sum, gram);
-}
-
-void AccumulateShiftedMoments(const double* const* col,
-                              const double* shift,
-                              int c,
-                              int i0,
-                              int len,
-                              double* sum,
-                              double* gram) {
+void AccumulateShiftedMoments(const MomentBlock& b) {
 #if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
-  if (HasAvx2()) return ShiftedMomentsAvx2(col, shift, c, i0, len, sum, gram);
+  static const bool has_avx2 =
+      __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+  if (has_avx2) return ShiftedMomentsAvx2(b);
 #endif
-  ShiftedMomentsBaseline(col, shift, c, i0, len, sum, gram);
+  ShiftedMomentsBaseline(b);
 }
 
 }  // namespace
@@ -446,13 +415,13 @@ OlsResult FitOls(const Eigen::Ref<const Eigen::MatrixXd>& X,
   Eigen::MatrixXd S = Eigen::MatrixXd::Zero(p + 1, p + 1);
   for (int i0 = 0; i0 < n; i0 += kMomentBlock) {
     const int len = std::min(kMomentBlock, n - i0);
-    AccumulateShiftedMoments(columns.data(),
-                             column_shift.data(),
-                             c,
-                             i0,
-                             len,
-                             block_sum.data(),
-                             block_gram.data());
+    AccumulateShiftedMoments(MomentBlock{columns.data(),
+                                         column_shift.data(),
+                                         c,
+                                         i0,
+                                         len,
+                                         block_sum.data(),
+                                         block_gram.data()});
     for (int u = 0; u < c; ++u) {
       sum(column_index[u]) += block_sum[u];
       for (int w = 0; w <= u; ++w)

@@ -546,12 +546,9 @@ class PgStore final : public Store {
     });
   }
 
-  std::optional<IdentificationJob> ClaimJobWithLease(std::int64_t id,
-                                                     const std::string& worker,
-                                                     int lease_s) override {
-    if (lease_s <= 0)
-      throw std::invalid_argument("lease_s = " + std::to_string(lease_s) +
-                                  " (must be > 0)");
+  std::optional<IdentificationJob> DoClaimJob(std::int64_t id,
+                                              const std::string& worker,
+                                              int lease_s) override {
     return Write([&](Tx& tx) -> std::optional<IdentificationJob> {
       // A job row locked by another daemon's claim is skipped, not waited
       // for: that daemon is taking it.

@@ -604,12 +604,9 @@ class SqliteStore final : public Store {
     return out;
   }
 
-  std::optional<IdentificationJob> ClaimJobWithLease(std::int64_t id,
-                                                     const std::string& worker,
-                                                     int lease_s) override {
-    if (lease_s <= 0)
-      throw std::invalid_argument("lease_s = " + std::to_string(lease_s) +
-                                  " (must be > 0)");
+  std::optional<IdentificationJob> DoClaimJob(std::int64_t id,
+                                              const std::string& worker,
+                                              int lease_s) override {
     std::lock_guard<std::mutex> lock(mu_);
     Stmt(std::string("UPDATE jobs SET claimed_by=?, updated_at=? WHERE id=? "
                      "AND (claimed_by='' OR claimed_by=? OR updated_at < "

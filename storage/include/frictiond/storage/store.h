@@ -199,9 +199,16 @@ class Store {
                                             const std::string& worker) {
     return ClaimJobWithLease(id, worker, kClaimLeaseS);
   }
-  /// ClaimJob with another lease (> 0 s), e.g. a short one in tests.
-  virtual std::optional<IdentificationJob> ClaimJobWithLease(
-      std::int64_t id, const std::string& worker, int lease_s) = 0;
+  /// ClaimJob with another lease, e.g. a short one in tests.
+  /// @throws std::invalid_argument when lease_s <= 0.
+  std::optional<IdentificationJob> ClaimJobWithLease(std::int64_t id,
+                                                     const std::string& worker,
+                                                     int lease_s) {
+    if (lease_s <= 0)
+      throw std::invalid_argument("lease_s = " + std::to_string(lease_s) +
+                                  " (must be > 0)");
+    return DoClaimJob(id, worker, lease_s);
+  }
 
   // --- images ---------------------------------------------------------------
   virtual std::int64_t AddImage(const ImageRecord& image) = 0;
@@ -253,6 +260,10 @@ class Store {
 
  protected:
   Store() = default;
+  /// ClaimJobWithLease for a valid lease (> 0 s).
+  virtual std::optional<IdentificationJob> DoClaimJob(std::int64_t id,
+                                                      const std::string& worker,
+                                                      int lease_s) = 0;
 };
 
 /// Opens a store: a SQLite database file (created if missing; ":memory:" for
