@@ -36,6 +36,11 @@ FrictionClient MakeClient(const Globals& g);
 void RunCommand(const std::function<void()>& body);
 /// Reads a whole file. @throws CLI::RuntimeError(2) after printing why.
 std::string ReadFileOrFail(const std::string& path);
+/// Checks a numeric option inside RunCommand: throws std::invalid_argument
+/// "OPTION = VALUE (must be > 0)" (or ">= 0" when zero is allowed), which
+/// RunCommand turns into exit code 2.
+void RequirePositive(const char* option, double value);
+void RequireNonNegative(const char* option, double value);
 
 void RegisterCoreCommands(
     CLI::App& app,

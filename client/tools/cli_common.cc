@@ -36,6 +36,18 @@ void RunCommand(const std::function<void()>& body) {
   }
 }
 
+void RequirePositive(const char* option, double value) {
+  if (!(value > 0))
+    throw std::invalid_argument(std::string(option) + " = " +
+                                std::to_string(value) + " (must be > 0)");
+}
+
+void RequireNonNegative(const char* option, double value) {
+  if (!(value >= 0))
+    throw std::invalid_argument(std::string(option) + " = " +
+                                std::to_string(value) + " (must be >= 0)");
+}
+
 std::string ReadFileOrFail(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) {

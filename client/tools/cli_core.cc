@@ -211,12 +211,8 @@ void RegisterCoreCommands(CLI::App& app, Globals& g) {
     cmd->add_option("--v-mm-s", v, "sliding speed [mm/s]")->required();
     cmd->callback([&g] {
       RunCommand([&] {
-        if (!(fn > 0))
-          throw std::invalid_argument("--fn-n = " + std::to_string(fn) +
-                                      " (must be > 0)");
-        if (!(v >= 0))
-          throw std::invalid_argument("--v-mm-s = " + std::to_string(v) +
-                                      " (must be >= 0)");
+        RequirePositive("--fn-n", fn);
+        RequireNonNegative("--v-mm-s", v);
         FrictionClient c = MakeClient(g);
         const ModelSet m = c.FetchModel(id);
         if (!m.stochastic)
@@ -244,12 +240,8 @@ void RegisterCoreCommands(CLI::App& app, Globals& g) {
     cmd->add_option("--ft-n", ft, "tangential force [N]")->required();
     cmd->callback([&g] {
       RunCommand([&] {
-        if (!(fn > 0))
-          throw std::invalid_argument("--fn-n = " + std::to_string(fn) +
-                                      " (must be > 0)");
-        if (!(ft >= 0))
-          throw std::invalid_argument("--ft-n = " + std::to_string(ft) +
-                                      " (must be >= 0)");
+        RequirePositive("--fn-n", fn);
+        RequireNonNegative("--ft-n", ft);
         FrictionClient c = MakeClient(g);
         const ModelSet m = c.FetchModel(id);
         if (!m.stochastic)

@@ -92,9 +92,7 @@ void RegisterJointCommands(CLI::App& app, Globals& g) {
       RunCommand([&] {
         JointConfig config;
         config.contact.area_mm2 = area;
-        if (!(area > 0))
-          throw std::invalid_argument("--area-mm2 = " + std::to_string(area) +
-                                      " (must be > 0)");
+        RequirePositive("--area-mm2", area);
         JointData data;
         try {
           data = ParseJointCsv(ReadFileOrFail(file), config.lubricant);

@@ -26,12 +26,8 @@ void RegisterPaper000Commands(CLI::App& app, Globals& g) {
     cmd->add_option("--v-mm-s", v, "desired sliding speed [mm/s]")->required();
     cmd->callback([&g] {
       RunCommand([&] {
-        if (!(fn > 0))
-          throw std::invalid_argument("--fn-n = " + std::to_string(fn) +
-                                      " (must be > 0)");
-        if (!(v >= 0))
-          throw std::invalid_argument("--v-mm-s = " + std::to_string(v) +
-                                      " (must be >= 0)");
+        RequirePositive("--fn-n", fn);
+        RequireNonNegative("--v-mm-s", v);
         std::cout << MakeClient(g).FetchTargetForce(id, fn, v).dump(2) << "\n";
       });
     });
@@ -49,12 +45,8 @@ void RegisterPaper000Commands(CLI::App& app, Globals& g) {
     cmd->add_option("--ft-n", ft, "measured tangential force [N]")->required();
     cmd->callback([&g] {
       RunCommand([&] {
-        if (!(fn > 0))
-          throw std::invalid_argument("--fn-n = " + std::to_string(fn) +
-                                      " (must be > 0)");
-        if (!(ft >= 0))
-          throw std::invalid_argument("--ft-n = " + std::to_string(ft) +
-                                      " (must be >= 0)");
+        RequirePositive("--fn-n", fn);
+        RequireNonNegative("--ft-n", ft);
         std::cout << MakeClient(g).FetchSlidingSpeed(id, fn, ft).dump(2)
                   << "\n";
       });
@@ -73,12 +65,8 @@ void RegisterPaper000Commands(CLI::App& app, Globals& g) {
     cmd->add_option("--ratio", ratio, "force ratio Ft/Fn")->required();
     cmd->callback([&g] {
       RunCommand([&] {
-        if (!(fn > 0))
-          throw std::invalid_argument("--fn-n = " + std::to_string(fn) +
-                                      " (must be > 0)");
-        if (!(ratio >= 0))
-          throw std::invalid_argument("--ratio = " + std::to_string(ratio) +
-                                      " (must be >= 0)");
+        RequirePositive("--fn-n", fn);
+        RequireNonNegative("--ratio", ratio);
         std::cout << MakeClient(g)
                          .FetchConditionalSlipLikelihood(id, fn, ratio)
                          .dump(2)
