@@ -80,6 +80,19 @@ std::string WithQuery(
   return path;
 }
 
+// "/v1/materials/{material}/{route}" with the query `first`, then the
+// fingertip, then `extra` (the caller's optional parameters).
+std::string MaterialPath(
+    const std::string& material,
+    const std::string& route,
+    std::vector<std::pair<std::string, std::string>> first,
+    const std::string& fingertip,
+    const std::vector<std::pair<std::string, std::string>>& extra = {}) {
+  first.emplace_back("fingertip", fingertip);
+  first.insert(first.end(), extra.begin(), extra.end());
+  return WithQuery("/v1/materials/" + UrlEncode(material) + "/" + route, first);
+}
+
 }  // namespace
 
 std::string FrictionClient::GetText(const std::string& path,
@@ -99,11 +112,8 @@ std::string FrictionClient::ExportMaterial(
     const std::string& material,
     const std::string& format,
     const std::vector<std::pair<std::string, std::string>>& params) {
-  auto all = params;
-  all.insert(all.begin(), {"fingertip", options_.fingertip});
-  all.insert(all.begin(), {"format", format});
-  return GetText(
-      WithQuery("/v1/materials/" + UrlEncode(material) + "/export", all));
+  return GetText(MaterialPath(
+      material, "export", {{"format", format}}, options_.fingertip, params));
 }
 
 json FrictionClient::FetchPairFriction(
@@ -130,12 +140,12 @@ json FrictionClient::FetchTargetForce(
     double fn_n,
     double v_mm_s,
     const std::vector<std::pair<std::string, std::string>>& params) {
-  auto all = params;
-  all.insert(all.begin(), {"fingertip", options_.fingertip});
-  all.insert(all.begin(), {"v_mm_s", NumText(v_mm_s)});
-  all.insert(all.begin(), {"fn_n", NumText(fn_n)});
   return GetJson(
-      WithQuery("/v1/materials/" + UrlEncode(material) + "/target-force", all));
+      MaterialPath(material,
+                   "target-force",
+                   {{"fn_n", NumText(fn_n)}, {"v_mm_s", NumText(v_mm_s)}},
+                   options_.fingertip,
+                   params));
 }
 
 json FrictionClient::FetchSlidingSpeed(
@@ -143,28 +153,29 @@ json FrictionClient::FetchSlidingSpeed(
     double fn_n,
     double ft_n,
     const std::vector<std::pair<std::string, std::string>>& params) {
-  auto all = params;
-  all.insert(all.begin(), {"fingertip", options_.fingertip});
-  all.insert(all.begin(), {"ft_n", NumText(ft_n)});
-  all.insert(all.begin(), {"fn_n", NumText(fn_n)});
-  return GetJson(WithQuery(
-      "/v1/materials/" + UrlEncode(material) + "/sliding-speed", all));
+  return GetJson(
+      MaterialPath(material,
+                   "sliding-speed",
+                   {{"fn_n", NumText(fn_n)}, {"ft_n", NumText(ft_n)}},
+                   options_.fingertip,
+                   params));
 }
 
 json FrictionClient::FetchConditionalSlipLikelihood(const std::string& material,
                                                     double fn_n,
                                                     double ratio) {
-  return GetJson(WithQuery(
-      "/v1/materials/" + UrlEncode(material) + "/conditional-slip-likelihood",
-      {{"fn_n", NumText(fn_n)},
-       {"ratio", NumText(ratio)},
-       {"fingertip", options_.fingertip}}));
+  return GetJson(
+      MaterialPath(material,
+                   "conditional-slip-likelihood",
+                   {{"fn_n", NumText(fn_n)}, {"ratio", NumText(ratio)}},
+                   options_.fingertip));
 }
 
 json FrictionClient::FetchForms(const std::string& material, int folds) {
-  return GetJson(WithQuery(
-      "/v1/materials/" + UrlEncode(material) + "/forms",
-      {{"folds", std::to_string(folds)}, {"fingertip", options_.fingertip}}));
+  return GetJson(MaterialPath(material,
+                              "forms",
+                              {{"folds", std::to_string(folds)}},
+                              options_.fingertip));
 }
 
 json FrictionClient::FetchMuSpread(
@@ -172,21 +183,19 @@ json FrictionClient::FetchMuSpread(
     double fn_n,
     double v_mm_s,
     const std::vector<std::pair<std::string, std::string>>& params) {
-  auto all = params;
-  all.insert(all.begin(), {"fingertip", options_.fingertip});
-  all.insert(all.begin(), {"v_mm_s", NumText(v_mm_s)});
-  all.insert(all.begin(), {"fn_n", NumText(fn_n)});
   return GetJson(
-      WithQuery("/v1/materials/" + UrlEncode(material) + "/mu-spread", all));
+      MaterialPath(material,
+                   "mu-spread",
+                   {{"fn_n", NumText(fn_n)}, {"v_mm_s", NumText(v_mm_s)}},
+                   options_.fingertip,
+                   params));
 }
 
 json FrictionClient::FetchSpanVariability(
     const std::string& material,
     const std::vector<std::pair<std::string, std::string>>& params) {
-  auto all = params;
-  all.insert(all.begin(), {"fingertip", options_.fingertip});
-  return GetJson(WithQuery(
-      "/v1/materials/" + UrlEncode(material) + "/span-variability", all));
+  return GetJson(MaterialPath(
+      material, "span-variability", {}, options_.fingertip, params));
 }
 
 json FrictionClient::GetJson(const std::string& path) {
