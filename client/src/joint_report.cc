@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "frictiond/client/html.h"
+
 namespace frictiond {
 
 using nlohmann::json;
@@ -16,29 +18,6 @@ std::string Fmt(const char* f, double x) {
   char buf[64];
   std::snprintf(buf, sizeof buf, f, x);
   return buf;
-}
-
-std::string Escape(const std::string& s) {
-  std::string out;
-  for (char c : s) {
-    switch (c) {
-      case '<':
-        out += "&lt;";
-        break;
-      case '>':
-        out += "&gt;";
-        break;
-      case '&':
-        out += "&amp;";
-        break;
-      case '"':
-        out += "&quot;";
-        break;
-      default:
-        out += c;
-    }
-  }
-  return out;
 }
 
 // Blue (low) to yellow (high).
@@ -187,9 +166,9 @@ std::string RenderJointReportHtml(const std::string& material,
   std::string html =
       "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>Joint "
       "friction: " +
-      Escape(material) + " / " + Escape(joint) +
-      "</title></head><body>\n<h1>Joint friction: " + Escape(material) + " / " +
-      Escape(joint) +
+      EscapeHtml(material) + " / " + EscapeHtml(joint) +
+      "</title></head><body>\n<h1>Joint friction: " + EscapeHtml(material) +
+      " / " + EscapeHtml(joint) +
       "</h1>\n<h2>Friction against Sommerfeld number "
       "(paper 002, eq. 1)</h2>\n";
   if (f.mixed.theta.size() == 4 && f.mixed.theta.allFinite() &&
@@ -203,8 +182,8 @@ std::string RenderJointReportHtml(const std::string& material,
         "Sommerfeld span of the data.</p>\n";
   } else {
     html += "<p>The mixed model is not identified (" +
-            Escape(ToString(f.mixed.status)) + ": " + Escape(f.mixed.why) +
-            ").</p>\n";
+            EscapeHtml(ToString(f.mixed.status)) + ": " +
+            EscapeHtml(f.mixed.why) + ").</p>\n";
   }
   html +=
       "<h2>Models</h2>\n<table border=\"1\" cellpadding=\"4\"><tr><th>model</"
@@ -226,8 +205,9 @@ std::string RenderJointReportHtml(const std::string& material,
     for (const JointModelScore& s : f.scores)
       if (s.kind == r.kind) rmse = s.heldout_rmse;
     html += "<tr><td>" + ToString(r.kind) + "</td><td>" +
-            Escape(ToString(r.status)) + "</td><td>" + params + "</td><td>" +
-            (std::isfinite(rmse) ? Fmt("%.4g", rmse) : "-") + "</td></tr>\n";
+            EscapeHtml(ToString(r.status)) + "</td><td>" + params +
+            "</td><td>" + (std::isfinite(rmse) ? Fmt("%.4g", rmse) : "-") +
+            "</td></tr>\n";
   }
   html += "</table>\n";
   if (grid.is_object()) {

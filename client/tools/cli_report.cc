@@ -11,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "frictiond/client/html.h"
 #include "frictiond/estimators/friction_forms.h"
 #include "frictiond/estimators/mu_windows.h"
 #include "frictiond/estimators/preprocessing.h"
@@ -29,21 +30,6 @@ std::string Fmt(double x, const char* f = "%.4g") {
   char buf[64];
   std::snprintf(buf, sizeof buf, f, x);
   return buf;
-}
-
-std::string Escape(const std::string& s) {
-  std::string out;
-  for (char c : s) {
-    if (c == '<')
-      out += "&lt;";
-    else if (c == '>')
-      out += "&gt;";
-    else if (c == '&')
-      out += "&amp;";
-    else
-      out += c;
-  }
-  return out;
 }
 
 // A 480x300 SVG plot with axes, points and optional polylines.
@@ -94,12 +80,12 @@ class SvgPlot {
         "<rect x='60' y='30' width='400' height='220' fill='none' "
         "stroke='#333'/>";
     s += "<text x='260' y='20' text-anchor='middle' font-size='13'>" +
-         Escape(title_) + "</text>";
+         EscapeHtml(title_) + "</text>";
     s += "<text x='260' y='290' text-anchor='middle' font-size='12'>" +
-         Escape(xlabel_) + "</text>";
+         EscapeHtml(xlabel_) + "</text>";
     s += "<text x='14' y='140' font-size='12' transform='rotate(-90 14 140)' "
          "text-anchor='middle'>" +
-         Escape(ylabel_) + "</text>";
+         EscapeHtml(ylabel_) + "</text>";
     for (int k = 0; k <= 4; ++k) {
       const double xv = x0_ + k * (x1_ - x0_) / 4;
       const double yv = y0_ + k * (y1_ - y0_) / 4;
@@ -418,11 +404,11 @@ std::string BuildReport(const std::string& name,
   std::string html =
       "<!DOCTYPE html>\n<html><head><meta charset='utf-8'><title>friction "
       "report: " +
-      Escape(name) +
+      EscapeHtml(name) +
       "</title><style>body{font-family:sans-serif;max-width:1000px;margin:"
       "auto}table{border-collapse:collapse}td,th{border:1px solid "
       "#999;padding:4px;vertical-align:top}</style></head><body>\n";
-  html += "<h1>Paper 000 claims on " + Escape(name) + "</h1>\n";
+  html += "<h1>Paper 000 claims on " + EscapeHtml(name) + "</h1>\n";
   html += "<p>" + std::to_string(data.size()) + " samples, " +
           std::to_string(m.strokes) + " strokes with slip, " +
           std::to_string(mu.size()) +
@@ -433,8 +419,9 @@ std::string BuildReport(const std::string& name,
       "<table><tr><th>paper 000 claim</th><th>this data</th><th>"
       "verdict</th></tr>\n";
   for (const Claim& c : claims) {
-    html += "<tr><td>" + Escape(c.claim) + "</td><td>" + Escape(c.shows) +
-            "</td><td>" + Escape(c.verdict) + "</td></tr>\n";
+    html += "<tr><td>" + EscapeHtml(c.claim) + "</td><td>" +
+            EscapeHtml(c.shows) + "</td><td>" + EscapeHtml(c.verdict) +
+            "</td></tr>\n";
   }
   html += "</table>\n" + plots + "</body></html>\n";
   return html;
