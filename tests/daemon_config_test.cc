@@ -118,7 +118,7 @@ TEST(DaemonConfigTest, BadConfigIsRejectedNamingTheField) {
        "plan.fn_max_n: expected a number"},
       {"plan_lugre_slow_accel",
        R"({"plan": {"lugre_slow_accel_mm_s2": 4}})",
-       "plan: lugre_slow_accel_mm_s2 = 4"},
+       "plan.lugre_slow_accel_mm_s2 = 4 (must be in (0, 3]"},
       {"plan_lugre_pair_type",
        R"({"plan": {"lugre_pair": 1}})",
        "plan.lugre_pair: expected true or false"},
