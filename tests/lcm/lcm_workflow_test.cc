@@ -132,7 +132,10 @@ class LcmWorkflowTest : public ::testing::Test {
   // The daemon knows the simulated robot's key (signed writes only).
   ft::DaemonOptions Options(const ft::TempDir& dir) const {
     const std::string keys = dir.path() + "/lcm_keys.json";
-    std::ofstream(keys) << nlohmann::json{{"sim-robot", ToHex(Key())}}.dump();
+    std::ofstream(keys) << nlohmann::json{
+        {"sim-robot", ToHex(Key())},
+        {"sim-robot-b",
+         ToHex(Key())}}.dump();
     ft::DaemonOptions o;
     o.db = dir.path() + "/lib.db";
     o.data = "none";
@@ -225,11 +228,12 @@ TEST_F(LcmWorkflowTest, UnknownMaterialIsIdentifiedFromASimulatedStroke) {
   EXPECT_EQ(store->ListStrokes("sim-rubber", "default").size(), 1u);
 }
 
-// Two robots at once on one daemon: one whose truth has other LuGre
-// parameters (the same stochastic part), and an old robot that acts on
-// identification_request_v1 and performs no pair. The first gets a LuGre
-// family near its own truth that fails the first truth's tolerances (the
-// check can fail); the second gets a stochastic model and no LuGre family.
+// Two robots at once on one daemon (two names, two keys): one whose truth
+// has other LuGre parameters (the same stochastic part), and an old robot
+// that acts on identification_request_v1 and performs no pair. The first
+// gets a LuGre family near its own truth that fails the first truth's
+// tolerances (the check can fail); the second gets a stochastic model and
+// no LuGre family.
 TEST_F(LcmWorkflowTest, OtherLuGreTruthAndOldRobot) {
   ft::TempDir dir("lcm_workflow_two");
   ft::DaemonProcess daemon(Options(dir));
@@ -246,7 +250,7 @@ TEST_F(LcmWorkflowTest, OtherLuGreTruthAndOldRobot) {
   a.key = Key();
   ft::RobotSimOptions b;
   b.url = url_;
-  b.robot = "sim-robot";
+  b.robot = "sim-robot-b";
   b.material = "sim-cotton";
   b.truth = Truth();
   b.seed = 31;

@@ -242,7 +242,10 @@ RobotSimResult RunRobotSimulation(const RobotSimOptions& o) {
   if (!lcm.good()) return fail("cannot create LCM provider " + o.url);
   Inbox inbox;
   inbox.SubscribeAll(lcm);
-  const std::string request_id = o.robot + "-q1";
+  // Unique per robot and material: robots sharing a name (and key) may ask
+  // for different materials at once.
+  const std::string request_id =
+      (o.robot + "-" + o.material).substr(0, 125) + "-q1";
   const material_query_v1 q =
       MakeQuery(request_id, o.robot, o.material, o.fingertip);
   lcm.publish(kLcmQueryChannel, &q);
