@@ -52,7 +52,8 @@ TEST(DaemonConfigTest, ValidConfigIsUsedAndFlagsOverrideIt) {
     "lcm": "none",
     "max_body_mb": 1,
     "threads": 2,
-    "plan": {"fn_min_n": 1.5, "fn_max_n": 7.5, "v_max_mm_s": 60}
+    "plan": {"fn_min_n": 1.5, "fn_max_n": 7.5, "v_max_mm_s": 60,
+             "lugre_fn_n": 3, "lugre_fast_strokes": 2}
   })");
   DaemonOptions options;
   options.db = dir.path() + "/from_flag.db";
@@ -75,6 +76,9 @@ TEST(DaemonConfigTest, ValidConfigIsUsedAndFlagsOverrideIt) {
   const json stroke = json::parse(res->body)["identification"]["stroke"];
   EXPECT_EQ(stroke["fn_n"], json({1.5, 7.5})) << stroke;
   EXPECT_EQ(stroke["v_mm_s"][1], 60) << stroke;
+  EXPECT_EQ(stroke["lugre"]["fn_n"], 3) << stroke;
+  EXPECT_EQ(stroke["lugre"]["fast"]["strokes"], 2) << stroke;
+  EXPECT_EQ(stroke["lugre"]["slow"]["accel_mm_s2"], 2) << stroke;
 
   // A 2 MiB body is over the configured 1 MiB limit.
   res = client->Post(
@@ -112,6 +116,12 @@ TEST(DaemonConfigTest, BadConfigIsRejectedNamingTheField) {
       {"plan_field_type",
        R"({"plan": {"fn_max_n": "high"}})",
        "plan.fn_max_n: expected a number"},
+      {"plan_lugre_slow_accel",
+       R"({"plan": {"lugre_slow_accel_mm_s2": 4}})",
+       "plan.lugre_slow_accel_mm_s2 = 4 (must be in (0, 3]"},
+      {"plan_lugre_pair_type",
+       R"({"plan": {"lugre_pair": 1}})",
+       "plan.lugre_pair: expected true or false"},
       {"open_reads_type",
        R"({"open_reads": "yes"})",
        "open_reads: expected true or false"},

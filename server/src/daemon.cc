@@ -1,6 +1,7 @@
 #include "frictiond/server/daemon.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <fstream>
 #include <iostream>
 #include <iterator>
@@ -14,6 +15,51 @@
 namespace frictiond {
 
 using nlohmann::json;
+
+namespace {
+
+// The LuGre pair of the stroke plan (StrokePlanOptions, docs/lcm.md "Stroke
+// plan"); `where` starts the message ("FILE: plan." or "plan: ").
+void CheckLuGrePlan(const StrokePlanOptions& plan, const std::string& where) {
+  auto plan_rule =
+      [&where](bool ok, const char* key, double value, const char* rule) {
+        if (ok) return;
+        char text[32];
+        std::snprintf(text, sizeof text, "%g", value);
+        throw std::invalid_argument(where + key + " = " + text + " (must be " +
+                                    rule + ")");
+      };
+  plan_rule(plan.lugre_fn_n >= 0,
+            "lugre_fn_n",
+            plan.lugre_fn_n,
+            ">= 0; 0: the middle of the Fn span");
+  plan_rule(plan.lugre_slow_accel_mm_s2 > 0 && plan.lugre_slow_accel_mm_s2 <= 3,
+            "lugre_slow_accel_mm_s2",
+            plan.lugre_slow_accel_mm_s2,
+            "in (0, 3]: the quasi-static step");
+  plan_rule(plan.lugre_slow_peak_mm_s > 0,
+            "lugre_slow_peak_mm_s",
+            plan.lugre_slow_peak_mm_s,
+            "> 0");
+  plan_rule(plan.lugre_fast_strokes >= 1 && plan.lugre_fast_strokes <= 12,
+            "lugre_fast_strokes",
+            plan.lugre_fast_strokes,
+            "in 1..12");
+  plan_rule(plan.lugre_fast_accel_mm_s2 >= 5,
+            "lugre_fast_accel_mm_s2",
+            plan.lugre_fast_accel_mm_s2,
+            ">= 5: the dynamic step");
+  plan_rule(plan.lugre_fast_peak_mm_s > 0,
+            "lugre_fast_peak_mm_s",
+            plan.lugre_fast_peak_mm_s,
+            "> 0");
+  plan_rule(plan.lugre_rest_s >= 0.6,
+            "lugre_rest_s",
+            plan.lugre_rest_s,
+            ">= 0.6: strokes split at rests of 0.25 s, plus 0.1 s margins");
+}
+
+}  // namespace
 
 std::map<std::string, std::string> DaemonConfig::LoadLcmKeys() const {
   std::map<std::string, std::string> keys =
@@ -124,6 +170,20 @@ void DaemonConfig::LoadFile(const std::string& path) {
     number(p, "v_max_mm_s", &plan.v_max_mm_s);
     number(p, "max_duration_s", &plan.max_duration_s);
     number(p, "min_span_pct", &plan.min_span_pct);
+    if (p.contains("lugre_pair")) {
+      if (!p["lugre_pair"].is_boolean())
+        throw std::invalid_argument(
+            path + ": plan.lugre_pair: expected true or false");
+      plan.lugre_pair = p["lugre_pair"].get<bool>();
+    }
+    number(p, "lugre_fn_n", &plan.lugre_fn_n);
+    number(p, "lugre_slow_accel_mm_s2", &plan.lugre_slow_accel_mm_s2);
+    number(p, "lugre_slow_peak_mm_s", &plan.lugre_slow_peak_mm_s);
+    integer(p, "lugre_fast_strokes", &plan.lugre_fast_strokes);
+    number(p, "lugre_fast_accel_mm_s2", &plan.lugre_fast_accel_mm_s2);
+    number(p, "lugre_fast_peak_mm_s", &plan.lugre_fast_peak_mm_s);
+    number(p, "lugre_rest_s", &plan.lugre_rest_s);
+    CheckLuGrePlan(plan, path + ": plan.");
   }
 }
 
@@ -151,6 +211,7 @@ void DaemonConfig::Validate() const {
     throw std::invalid_argument("plan: max_duration_s must be > 0");
   if (!(plan.min_span_pct > 0 && plan.min_span_pct <= 100))
     throw std::invalid_argument("plan: min_span_pct must be in (0, 100]");
+  CheckLuGrePlan(plan, "plan: ");
   if (lcm_url.empty())
     throw std::invalid_argument("--lcm: empty (give a provider URL or none)");
   if (!(lcm_max_skew_s > 0 && lcm_max_skew_s <= 3600))

@@ -28,6 +28,7 @@
 #include "frictiond/estimators/span_coverage.h"
 #include "frictiond/estimators/stroke_csv.h"
 #include "frictiond/identification_request_v1.hpp"
+#include "frictiond/identification_request_v2.hpp"
 #include "frictiond/material_query_v1.hpp"
 #include "frictiond/material_reply_v1.hpp"
 #include "frictiond/model_update_v1.hpp"
@@ -391,6 +392,49 @@ class LcmEndpointImpl {
         kLcmStrokeChannel + " with job_id " + std::to_string(job_id) +
         " and stroke " + std::to_string(stroke);
     publisher_->Publish(kLcmIdentRequestChannel, r);
+    // v2: the same plus the LuGre pair (a plan stored before the pair
+    // existed asks for none).
+    identification_request_v2 r2;
+    r2.utime = r.utime;
+    r2.job_id = r.job_id;
+    r2.stroke = r.stroke;
+    r2.request_id = r.request_id;
+    r2.robot = r.robot;
+    r2.material = r.material;
+    r2.fingertip = r.fingertip;
+    r2.fn_min_n = r.fn_min_n;
+    r2.fn_max_n = r.fn_max_n;
+    r2.v_min_mm_s = r.v_min_mm_s;
+    r2.v_max_mm_s = r.v_max_mm_s;
+    r2.max_duration_s = r.max_duration_s;
+    r2.min_span_pct = r.min_span_pct;
+    r2.follow_up = r.follow_up;
+    r2.instructions = r.instructions;
+    const json* lugre = plan.contains("lugre") && plan["lugre"].is_object()
+                            ? &plan["lugre"]
+                            : nullptr;
+    r2.lugre_pair = lugre != nullptr;
+    const double nan = std::nan("");
+    auto num = [&](const char* group, const char* key) {
+      if (!lugre) return nan;
+      const json& g = group ? lugre->value(group, json::object()) : *lugre;
+      return g.value(key, nan);
+    };
+    r2.lugre_fn_n = num(nullptr, "fn_n");
+    r2.lugre_slow_accel_mm_s2 = num("slow", "accel_mm_s2");
+    r2.lugre_slow_peak_mm_s = num("slow", "peak_mm_s");
+    r2.lugre_fast_strokes =
+        lugre ? lugre->value("fast", json::object()).value("strokes", 0) : 0;
+    r2.lugre_fast_accel_mm_s2 = num("fast", "accel_mm_s2");
+    r2.lugre_fast_peak_mm_s = num("fast", "peak_mm_s");
+    r2.lugre_rest_s = num(nullptr, "rest_s");
+    if (lugre)
+      r2.instructions +=
+          "; then, at normal force lugre_fn_n, the LuGre pair: a slow "
+          "triangle to lugre_slow_peak_mm_s at lugre_slow_accel_mm_s2 and "
+          "lugre_fast_strokes fast triangles to lugre_fast_peak_mm_s at "
+          "lugre_fast_accel_mm_s2, lugre_rest_s apart, in the same stroke";
+    publisher_->Publish(kLcmIdentRequestV2Channel, r2);
   }
 
   static SpanRect PlanSpan(const json& plan) {

@@ -278,19 +278,41 @@ std::shared_ptr<const CachedModel> FrictionLibrary::FindModelVersion(
 json FrictionLibrary::MakeStrokePlan(const std::string& material,
                                      const std::string& fingertip) const {
   const StrokePlanOptions& p = options_.plan;
-  return json{{"material", material},
-              {"fingertip", fingertip},
-              {"fn_n", {p.fn_min_n, p.fn_max_n}},
-              {"v_mm_s", {p.v_min_mm_s, p.v_max_mm_s}},
-              {"max_duration_s", p.max_duration_s},
-              {"min_span_pct", p.min_span_pct},
-              {"instructions",
-               "slide the fingertip on the surface in repeated strokes with "
-               "rests between them, sweeping normal "
-               "force over fn_n and peak sliding speed over v_mm_s; then POST "
-               "the samples as a stroke CSV (t_s, "
-               "fn_n, ft_n, v_mm_s) to /v1/materials/" +
-                   material + "/strokes?fingertip=" + fingertip}};
+  json plan =
+      json{{"material", material},
+           {"fingertip", fingertip},
+           {"fn_n", {p.fn_min_n, p.fn_max_n}},
+           {"v_mm_s", {p.v_min_mm_s, p.v_max_mm_s}},
+           {"max_duration_s", p.max_duration_s},
+           {"min_span_pct", p.min_span_pct},
+           {"instructions",
+            "slide the fingertip on the surface in repeated strokes with "
+            "rests between them, sweeping normal "
+            "force over fn_n and peak sliding speed over v_mm_s; then POST "
+            "the samples as a stroke CSV (t_s, "
+            "fn_n, ft_n, v_mm_s) to /v1/materials/" +
+                material + "/strokes?fingertip=" + fingertip}};
+  if (p.lugre_pair) {
+    const double fn_n =
+        p.lugre_fn_n > 0 ? p.lugre_fn_n : 0.5 * (p.fn_min_n + p.fn_max_n);
+    plan["lugre"] = json{
+        {"fn_n", fn_n},
+        {"slow",
+         {{"accel_mm_s2", p.lugre_slow_accel_mm_s2},
+          {"peak_mm_s", p.lugre_slow_peak_mm_s}}},
+        {"fast",
+         {{"strokes", p.lugre_fast_strokes},
+          {"accel_mm_s2", p.lugre_fast_accel_mm_s2},
+          {"peak_mm_s", p.lugre_fast_peak_mm_s}}},
+        {"rest_s", p.lugre_rest_s},
+        {"instructions",
+         "end the stroke with the LuGre identifying pair at normal force "
+         "fn_n: a slow triangle 0 -> slow.peak_mm_s -> 0 at |dv/dt| = "
+         "slow.accel_mm_s2, then fast.strokes triangles 0 -> fast.peak_mm_s "
+         "-> 0 at fast.accel_mm_s2, with rest_s of rest between triangles "
+         "(rest_s / 2 before the first and after the last)"}};
+  }
+  return plan;
 }
 
 json FrictionLibrary::RequestIdentification(const std::string& material,

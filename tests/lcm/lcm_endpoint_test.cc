@@ -141,6 +141,23 @@ TEST_F(LcmEndpointTest, UnknownMaterialOpensAJobAndSendsThePlan) {
   EXPECT_DOUBLE_EQ(plan.fn_max_n, defaults.fn_max_n);
   EXPECT_DOUBLE_EQ(plan.v_max_mm_s, defaults.v_max_mm_s);
   EXPECT_DOUBLE_EQ(plan.min_span_pct, defaults.min_span_pct);
+  // v2 beside v1: the same plan plus the LuGre pair (default: at the middle
+  // of the Fn span).
+  ASSERT_TRUE(inbox_->WaitFor([&] { return !inbox_->requests_v2.empty(); }));
+  const identification_request_v2& plan2 = inbox_->requests_v2.back();
+  EXPECT_EQ(plan2.job_id, r.job_id);
+  EXPECT_EQ(plan2.stroke, plan.stroke);
+  EXPECT_DOUBLE_EQ(plan2.fn_max_n, defaults.fn_max_n);
+  EXPECT_DOUBLE_EQ(plan2.max_duration_s, defaults.max_duration_s);
+  EXPECT_TRUE(plan2.lugre_pair);
+  EXPECT_DOUBLE_EQ(plan2.lugre_fn_n,
+                   0.5 * (defaults.fn_min_n + defaults.fn_max_n));
+  EXPECT_DOUBLE_EQ(plan2.lugre_slow_accel_mm_s2,
+                   defaults.lugre_slow_accel_mm_s2);
+  EXPECT_LE(plan2.lugre_slow_accel_mm_s2, 3.0);  // quasi-static step
+  EXPECT_GE(plan2.lugre_fast_accel_mm_s2, 5.0);  // dynamic step
+  EXPECT_EQ(plan2.lugre_fast_strokes, defaults.lugre_fast_strokes);
+  EXPECT_DOUBLE_EQ(plan2.lugre_rest_s, defaults.lugre_rest_s);
   auto job = library_->store().GetJob(r.job_id);
   ASSERT_TRUE(job);
   EXPECT_EQ(job->state, "requested");

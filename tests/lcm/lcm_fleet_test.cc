@@ -6,6 +6,9 @@
 #include <string>
 #include <thread>
 
+// Eigen (robot_simulator.h) before httplib.h: <resolv.h> (via httplib)
+// defines a macro _res that breaks Eigen's product kernels.
+#include <Eigen/Dense>
 #include <gtest/gtest.h>
 #include <httplib.h>
 

@@ -12,6 +12,7 @@
 #include "frictiond/coverage_progress_v1.hpp"
 #include "frictiond/error_v1.hpp"
 #include "frictiond/identification_request_v1.hpp"
+#include "frictiond/identification_request_v2.hpp"
 #include "frictiond/material_query_v1.hpp"
 #include "frictiond/material_reply_v1.hpp"
 #include "frictiond/model_update_v1.hpp"
@@ -27,6 +28,9 @@ class LcmInbox {
     lcm_.subscribe(kLcmReplyChannel, &LcmInbox::On<material_reply_v1>, this);
     lcm_.subscribe(kLcmIdentRequestChannel,
                    &LcmInbox::On<identification_request_v1>,
+                   this);
+    lcm_.subscribe(kLcmIdentRequestV2Channel,
+                   &LcmInbox::On<identification_request_v2>,
                    this);
     lcm_.subscribe(
         kLcmProgressChannel, &LcmInbox::On<coverage_progress_v1>, this);
@@ -50,6 +54,7 @@ class LcmInbox {
 
   std::vector<material_reply_v1> replies;
   std::vector<identification_request_v1> requests;
+  std::vector<identification_request_v2> requests_v2;
   std::vector<coverage_progress_v1> progress;
   std::vector<model_update_v1> updates;
   std::vector<error_v1> errors;
@@ -61,6 +66,7 @@ class LcmInbox {
   }
   void Store(const material_reply_v1& m) { replies.push_back(m); }
   void Store(const identification_request_v1& m) { requests.push_back(m); }
+  void Store(const identification_request_v2& m) { requests_v2.push_back(m); }
   void Store(const coverage_progress_v1& m) { progress.push_back(m); }
   void Store(const model_update_v1& m) { updates.push_back(m); }
   void Store(const error_v1& m) { errors.push_back(m); }

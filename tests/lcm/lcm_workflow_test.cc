@@ -1,18 +1,31 @@
 // End to end over LCM (paper 000, Fig. 11): the real frictiond process and
-// a simulated robot. The robot asks for an unknown material, performs the
-// requested stroke from a hidden true model, streams it with duplicated,
-// reordered and withheld chunks, gets a follow-up request when its first
-// stroke covers too little span, and receives the fitted model, which must
-// match the truth. A second test restarts the daemon in the middle of a job.
+// simulated robots. A robot asks for an unknown material, performs the
+// requested stroke from a hidden truth that is both a stochastic model
+// (paper 000 eq. (1)) and LuGre dynamics (paper 001; testing::RobotTruth),
+// ending it with the LuGre pair the identification_request_v2 asks for,
+// streams it with duplicated, reordered and withheld chunks, gets a
+// follow-up request when its first stroke covers too little span, and
+// receives the fitted model: the stochastic coefficients and the LuGre
+// family must match the truth, over LCM and over HTTP. A robot with another
+// LuGre truth must get a model that does not match the first truth, and an
+// old robot (identification_request_v1, no pair) a model without LuGre. A
+// last test restarts the daemon in the middle of a job.
 #include <cmath>
 #include <fstream>
+#include <iostream>
 #include <string>
+#include <thread>
 
+// Eigen (robot_simulator.h) before httplib.h: <resolv.h> (via httplib)
+// defines a macro _res that breaks Eigen's product kernels.
+#include <Eigen/Dense>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
 #include "frictiond/crypto/hmac.h"
+#include "frictiond/estimators/lugre.h"
 #include "frictiond/material_reply_v1.hpp"
+#include "frictiond/proto/lugre_json.h"
 #include "frictiond/storage/store.h"
 #include "frictiond/testing/daemon_process.h"
 
@@ -29,9 +42,12 @@ std::string JoinLog(const ft::RobotSimResult& r) {
   return s;
 }
 
-// Truth placed away from zero (STYLE §10): a do-nothing fit fails.
-ft::SimulationSpec Truth() {
-  ft::SimulationSpec t;
+// Truth placed away from zero (STYLE §10): a do-nothing fit fails. The
+// LuGre part (RobotTruth defaults): mu_s = mu_c + 0.3, v0 2.5 mm/s,
+// sigma2 = b1, sigma0 50 /mm, sigma1 0.1 s/mm; at the plan's pair force
+// (2.5 N, the middle of 0.5..4.5) theta = [1.05, 0.75, 2.5, 0.004, 50, 0.1].
+ft::RobotTruth Truth() {
+  ft::RobotTruth t;
   t.b0 = 0.9;
   t.b1 = 0.004;
   t.b2 = -0.06;
@@ -44,8 +60,7 @@ ft::SimulationSpec Truth() {
 // |estimate - truth| within 5 standard errors (white noise: the OLS
 // standard errors are valid, so this fails with probability < 1e-5 per
 // coefficient), and at most a fixed absolute bound too.
-void ExpectMatchesTruth(const ft::RobotSimResult& r,
-                        const ft::SimulationSpec& t) {
+void ExpectMatchesTruth(const ft::RobotSimResult& r, const ft::RobotTruth& t) {
   const std::pair<const char*, double> truth[] = {
       {"intercept", t.b0}, {"v_mm_s", t.b1}, {"fn_n", t.b2}};
   for (const auto& [term, value] : truth) {
@@ -55,7 +70,56 @@ void ExpectMatchesTruth(const ft::RobotSimResult& r,
     EXPECT_GT(se, 0) << term;
     EXPECT_NEAR(est, value, 5 * se) << term << " (se " << se << ")";
   }
+  // eps plus the sensor noise (0.5 % more for the defaults).
   EXPECT_NEAR(r.sigma_eps, t.sigma_eps, 0.15 * t.sigma_eps);
+}
+
+std::string ThetaText(const LuGreTheta& theta) {
+  std::string s;
+  for (int i = 0; i < 6; ++i) {
+    char buf[64];
+    std::snprintf(buf,
+                  sizeof buf,
+                  "%s%s %.5g",
+                  i ? ", " : "",
+                  LuGreParameterName(i),
+                  theta[i]);
+    s += buf;
+  }
+  return s;
+}
+
+// The LuGre family received over LCM matches the truth at the pair's
+// normal force (LuGreTolerances: mu_s, mu_c 3 %, v0 8 %, sigma2 30 %,
+// sigma0 10 %, sigma1 100 %; calibrated in tests/robot_truth_test.cc).
+void ExpectLuGreMatchesTruth(const ft::RobotSimResult& r,
+                             const ft::RobotTruth& t) {
+  ASSERT_GE(r.lugre_pairs, 1);
+  ASSERT_TRUE(r.has_lugre) << r.lugre_mismatch;
+  ASSERT_TRUE(r.lugre_checked);
+  const LuGreTheta truth = t.ThetaAt(r.lugre_fn_n);
+  for (int i = 0; i < 6; ++i) EXPECT_DOUBLE_EQ(r.lugre_truth[i], truth[i]);
+  std::cout << "LuGre over LCM at Fn " << r.lugre_fn_n << " N:\n  got   "
+            << ThetaText(r.lugre_theta) << "\n  truth " << ThetaText(truth)
+            << "\n";
+  EXPECT_EQ(r.lugre_mismatch, "");
+  EXPECT_EQ(ft::CompareLuGreToTruth(r.lugre_theta, truth), "");
+}
+
+// The "lugre" object of GET /v1/materials/{id}/model, parsed.
+LuGreFamily HttpLuGre(ft::DaemonProcess& daemon,
+                      const std::string& material,
+                      int version) {
+  auto http = daemon.MakeClient();
+  auto res = http->Get("/v1/materials/" + material + "/model");
+  if (!res || res->status != 200)
+    throw std::runtime_error("GET model of " + material + " failed");
+  const auto body = nlohmann::json::parse(res->body);
+  if (body["version"] != version)
+    throw std::runtime_error("version " + body["version"].dump());
+  if (!body.contains("lugre") || !body["lugre"].is_object())
+    throw std::runtime_error("no lugre object: " + res->body.substr(0, 400));
+  return LuGreFromJson(body["lugre"]);
 }
 
 class LcmWorkflowTest : public ::testing::Test {
@@ -68,7 +132,10 @@ class LcmWorkflowTest : public ::testing::Test {
   // The daemon knows the simulated robot's key (signed writes only).
   ft::DaemonOptions Options(const ft::TempDir& dir) const {
     const std::string keys = dir.path() + "/lcm_keys.json";
-    std::ofstream(keys) << nlohmann::json{{"sim-robot", ToHex(Key())}}.dump();
+    std::ofstream(keys) << nlohmann::json{
+        {"sim-robot", ToHex(Key())},
+        {"sim-robot-b",
+         ToHex(Key())}}.dump();
     ft::DaemonOptions o;
     o.db = dir.path() + "/lib.db";
     o.data = "none";
@@ -107,6 +174,10 @@ TEST_F(LcmWorkflowTest, UnknownMaterialIsIdentifiedFromASimulatedStroke) {
   EXPECT_GE(r.last_span_pct, 50.0);
   EXPECT_EQ(r.model_version, 1);
   ExpectMatchesTruth(r, o.truth);
+  // Both requests (stroke 0 and the follow-up) asked for the LuGre pair.
+  EXPECT_EQ(r.lugre_pairs, 2) << JoinLog(r);
+  EXPECT_DOUBLE_EQ(r.lugre_fn_n, 2.5);
+  ExpectLuGreMatchesTruth(r, o.truth);
 
   // The same model is served over HTTP (one core behind both endpoints).
   auto http = daemon.MakeClient();
@@ -117,6 +188,18 @@ TEST_F(LcmWorkflowTest, UnknownMaterialIsIdentifiedFromASimulatedStroke) {
   EXPECT_EQ(body["version"], r.model_version);
   EXPECT_DOUBLE_EQ(body["stochastic"]["coefficients"]["fn_n"].get<double>(),
                    r.coefficients.at("fn_n"));
+  // ... with the same LuGre family, identified from the pairs: one slow
+  // triangle per stroke for the quasi-static step, the newest four fast
+  // ones for the dynamic step (LM-2).
+  ASSERT_TRUE(body.contains("lugre") && body["lugre"].is_object()) << res->body;
+  const LuGreFamily lugre = LuGreFromJson(body["lugre"]);
+  for (int i = 0; i < 6; ++i)
+    EXPECT_DOUBLE_EQ(lugre.theta[i], r.lugre_theta[i]) << LuGreParameterName(i);
+  EXPECT_EQ(ft::CompareLuGreToTruth(lugre.theta, o.truth.ThetaAt(r.lugre_fn_n)),
+            "");
+  EXPECT_EQ(lugre.variant, "lm2");
+  EXPECT_EQ(lugre.strokes_quasi_static, 2);
+  EXPECT_EQ(lugre.strokes_dynamic, 4);
   // The duplicated chunks repeated signed bytes: dropped as replays, and
   // counted; nothing was forged.
   auto metrics = http->Get("/metrics");
@@ -143,6 +226,72 @@ TEST_F(LcmWorkflowTest, UnknownMaterialIsIdentifiedFromASimulatedStroke) {
   EXPECT_EQ(j->state, "fitted");
   EXPECT_NE(j->detail.find("span"), std::string::npos) << j->detail;
   EXPECT_EQ(store->ListStrokes("sim-rubber", "default").size(), 1u);
+}
+
+// Two robots at once on one daemon (two names, two keys): one whose truth
+// has other LuGre parameters (the same stochastic part), and an old robot
+// that acts on identification_request_v1 and performs no pair. The first
+// gets a LuGre family near its own truth that fails the first truth's
+// tolerances (the check can fail); the second gets a stochastic model and
+// no LuGre family.
+TEST_F(LcmWorkflowTest, OtherLuGreTruthAndOldRobot) {
+  ft::TempDir dir("lcm_workflow_two");
+  ft::DaemonProcess daemon(Options(dir));
+  daemon.Start();
+  ft::RobotSimOptions a;
+  a.url = url_;
+  a.robot = "sim-robot";
+  a.material = "sim-leather";
+  a.truth = Truth();
+  a.truth.static_excess = 0.15;
+  a.truth.v0_mm_s = 3.5;
+  a.truth.sigma0_per_mm = 25.0;
+  a.seed = 21;
+  a.key = Key();
+  ft::RobotSimOptions b;
+  b.url = url_;
+  b.robot = "sim-robot-b";
+  b.material = "sim-cotton";
+  b.truth = Truth();
+  b.seed = 31;
+  b.key = Key();
+  b.request_v2 = false;
+  ft::RobotSimResult ra, rb;
+  std::thread ta([&] { ra = ft::RunRobotSimulation(a); });
+  std::thread tb([&] { rb = ft::RunRobotSimulation(b); });
+  ta.join();
+  tb.join();
+  ASSERT_TRUE(ra.ok) << ra.why << "\n" << JoinLog(ra) << daemon.ReadLog();
+  ASSERT_TRUE(rb.ok) << rb.why << "\n" << JoinLog(rb) << daemon.ReadLog();
+
+  // The other truth is recovered ...
+  ExpectMatchesTruth(ra, a.truth);
+  ExpectLuGreMatchesTruth(ra, a.truth);
+  // ... and is not the first truth: the tolerances tell them apart.
+  const LuGreTheta first = Truth().ThetaAt(ra.lugre_fn_n);
+  const std::string off = ft::CompareLuGreToTruth(ra.lugre_theta, first);
+  std::cout << "other truth against the first: " << off << "\n";
+  EXPECT_NE(off.find("mu_s"), std::string::npos) << off;
+  EXPECT_NE(off.find("v0_mm_s"), std::string::npos) << off;
+  EXPECT_NE(off.find("sigma0_per_mm"), std::string::npos) << off;
+  const LuGreFamily served = HttpLuGre(daemon, "sim-leather", 1);
+  EXPECT_NE(ft::CompareLuGreToTruth(served.theta, first), "");
+  EXPECT_EQ(ft::CompareLuGreToTruth(served.theta, a.truth.ThetaAt(2.5)), "");
+
+  // The old robot: no pair asked on v1, none performed, no LuGre family,
+  // and the stochastic model as before.
+  EXPECT_EQ(rb.lugre_pairs, 0) << JoinLog(rb);
+  EXPECT_FALSE(rb.has_lugre);
+  EXPECT_FALSE(rb.lugre_checked);
+  ExpectMatchesTruth(rb, b.truth);
+  auto http = daemon.MakeClient();
+  auto res = http->Get("/v1/materials/sim-cotton/model");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 200) << res->body;
+  const auto body = nlohmann::json::parse(res->body);
+  EXPECT_TRUE(!body.contains("lugre") || body["lugre"].is_null()) << res->body;
+  const ft::ExitStatus s = daemon.Stop();
+  EXPECT_TRUE(s.exited && s.code == 0) << s.ToString();
 }
 
 TEST_F(LcmWorkflowTest, JobSurvivesADaemonRestart) {
@@ -179,6 +328,10 @@ TEST_F(LcmWorkflowTest, JobSurvivesADaemonRestart) {
   EXPECT_EQ(r.job_id, job);
   EXPECT_EQ(r.follow_ups, 0);
   ExpectMatchesTruth(r, o.truth);
+  // The job's plan was stored before the restart: it still asks for the
+  // pair, and mu_c follows b0 (0.7 - 0.06 * 2.5 = 0.55).
+  ExpectLuGreMatchesTruth(r, o.truth);
+  EXPECT_NEAR(r.lugre_truth[LuGreIndex::kMuCoulomb], 0.55, 1e-12);
 }
 
 }  // namespace

@@ -14,6 +14,7 @@
 #include "frictiond/crypto/lcm_signing.h"
 #include "frictiond/error_v1.hpp"
 #include "frictiond/identification_request_v1.hpp"
+#include "frictiond/identification_request_v2.hpp"
 #include "frictiond/material_query_v1.hpp"
 #include "frictiond/material_reply_v1.hpp"
 #include "frictiond/model_update_v1.hpp"
@@ -55,6 +56,7 @@ material_query_v1 MakeQuery(const std::string& request_id,
 struct Inbox {
   std::vector<material_reply_v1> replies;
   std::vector<identification_request_v1> requests;
+  std::vector<identification_request_v2> requests_v2;
   std::vector<coverage_progress_v1> progress;
   std::vector<model_update_v1> updates;
   std::vector<error_v1> errors;
@@ -67,6 +69,11 @@ struct Inbox {
                  const std::string&,
                  const identification_request_v1* m) {
     requests.push_back(*m);
+  }
+  void OnRequestV2(const lcm::ReceiveBuffer*,
+                   const std::string&,
+                   const identification_request_v2* m) {
+    requests_v2.push_back(*m);
   }
   void OnProgress(const lcm::ReceiveBuffer*,
                   const std::string&,
@@ -86,11 +93,67 @@ struct Inbox {
   void SubscribeAll(lcm::LCM& lcm) {
     lcm.subscribe(kLcmReplyChannel, &Inbox::OnReply, this);
     lcm.subscribe(kLcmIdentRequestChannel, &Inbox::OnRequest, this);
+    lcm.subscribe(kLcmIdentRequestV2Channel, &Inbox::OnRequestV2, this);
     lcm.subscribe(kLcmProgressChannel, &Inbox::OnProgress, this);
     lcm.subscribe(kLcmModelUpdateChannel, &Inbox::OnUpdate, this);
     lcm.subscribe(kLcmErrorChannel, &Inbox::OnError, this);
   }
 };
+
+// What a robot reads from identification_request_v1 or _v2.
+struct Request {
+  std::int64_t job_id = 0;
+  int stroke = 0;
+  bool follow_up = false;
+  double fn_min_n = 0, fn_max_n = 0, v_min_mm_s = 0, v_max_mm_s = 0;
+  bool lugre_pair = false;
+  LuGrePairShape pair;
+};
+
+Request FromV1(const identification_request_v1& r) {
+  Request q;
+  q.job_id = r.job_id;
+  q.stroke = r.stroke;
+  q.follow_up = r.follow_up;
+  q.fn_min_n = r.fn_min_n;
+  q.fn_max_n = r.fn_max_n;
+  q.v_min_mm_s = r.v_min_mm_s;
+  q.v_max_mm_s = r.v_max_mm_s;
+  return q;
+}
+
+Request FromV2(const identification_request_v2& r) {
+  Request q;
+  q.job_id = r.job_id;
+  q.stroke = r.stroke;
+  q.follow_up = r.follow_up;
+  q.fn_min_n = r.fn_min_n;
+  q.fn_max_n = r.fn_max_n;
+  q.v_min_mm_s = r.v_min_mm_s;
+  q.v_max_mm_s = r.v_max_mm_s;
+  q.lugre_pair = r.lugre_pair;
+  if (r.lugre_pair) {
+    q.pair.fn_n = r.lugre_fn_n;
+    q.pair.slow_accel_mm_s2 = r.lugre_slow_accel_mm_s2;
+    q.pair.slow_peak_mm_s = r.lugre_slow_peak_mm_s;
+    q.pair.fast_strokes = r.lugre_fast_strokes;
+    q.pair.fast_accel_mm_s2 = r.lugre_fast_accel_mm_s2;
+    q.pair.fast_peak_mm_s = r.lugre_fast_peak_mm_s;
+    q.pair.rest_s = r.lugre_rest_s;
+  }
+  return q;
+}
+
+// The pair's numbers must make a stroke the robot can perform.
+bool CheckPair(const LuGrePairShape& p, std::string* why) {
+  const bool ok = p.fn_n > 0 && p.slow_accel_mm_s2 > 0 &&
+                  p.slow_peak_mm_s > 0 && p.fast_strokes >= 0 &&
+                  p.fast_strokes <= 100 && p.fast_accel_mm_s2 > 0 &&
+                  p.fast_peak_mm_s > 0 && p.rest_s > 0 &&
+                  p.slow_peak_mm_s / p.slow_accel_mm_s2 < 1000;
+  if (!ok) *why = "identification_request_v2: unusable LuGre pair";
+  return ok;
+}
 
 }  // namespace
 
@@ -179,7 +242,10 @@ RobotSimResult RunRobotSimulation(const RobotSimOptions& o) {
   if (!lcm.good()) return fail("cannot create LCM provider " + o.url);
   Inbox inbox;
   inbox.SubscribeAll(lcm);
-  const std::string request_id = o.robot + "-q1";
+  // Unique per robot and material: robots sharing a name (and key) may ask
+  // for different materials at once.
+  const std::string request_id =
+      (o.robot + "-" + o.material).substr(0, 125) + "-q1";
   const material_query_v1 q =
       MakeQuery(request_id, o.robot, o.material, o.fingertip);
   lcm.publish(kLcmQueryChannel, &q);
@@ -256,24 +322,57 @@ RobotSimResult RunRobotSimulation(const RobotSimOptions& o) {
                     "): " + e.reason);
     }
     // A (follow-up) identification request: perform and stream the stroke.
-    for (; seen_requests < inbox.requests.size(); ++seen_requests) {
-      const identification_request_v1& r = inbox.requests[seen_requests];
+    std::vector<Request> fresh;
+    if (o.request_v2) {
+      for (; seen_requests < inbox.requests_v2.size(); ++seen_requests)
+        fresh.push_back(FromV2(inbox.requests_v2[seen_requests]));
+    } else {
+      for (; seen_requests < inbox.requests.size(); ++seen_requests)
+        fresh.push_back(FromV1(inbox.requests[seen_requests]));
+    }
+    for (const Request& r : fresh) {
       if (r.job_id != res.job_id || r.stroke <= current_stroke) continue;
       current_stroke = r.stroke;
       if (r.follow_up) ++res.follow_ups;
-      SimulationSpec spec = o.truth;
-      spec.fn_min_n = r.fn_min_n;
-      spec.fn_max_n = r.fn_max_n;
-      spec.v_min_mm_s = r.v_min_mm_s;
-      spec.v_max_mm_s = r.v_max_mm_s;
+      double fn_max_n = r.fn_max_n;
       if (o.narrow_first_stroke && r.stroke == 0)
-        spec.fn_max_n = r.fn_min_n + 0.25 * (r.fn_max_n - r.fn_min_n);
-      const StrokeData d = SimulateStrokes(spec, o.seed + r.stroke);
+        fn_max_n = r.fn_min_n + 0.25 * (r.fn_max_n - r.fn_min_n);
+      StrokeData d;
+      try {
+        d = SimulateTruthSweep(o.truth,
+                               r.fn_min_n,
+                               fn_max_n,
+                               r.v_min_mm_s,
+                               r.v_max_mm_s,
+                               o.seed + r.stroke);
+      } catch (const std::exception& e) {
+        return fail(std::string("cannot simulate the sweep: ") + e.what());
+      }
       std::ostringstream s;
       s << "stroke " << r.stroke << (r.follow_up ? " (follow-up)" : "")
-        << ": fn " << spec.fn_min_n << "-" << spec.fn_max_n << " N, v "
-        << spec.v_min_mm_s << "-" << spec.v_max_mm_s << " mm/s, " << d.size()
-        << " samples";
+        << ": fn " << r.fn_min_n << "-" << fn_max_n << " N, v " << r.v_min_mm_s
+        << "-" << r.v_max_mm_s << " mm/s";
+      if (r.lugre_pair) {
+        std::string why;
+        if (!CheckPair(r.pair, &why)) return fail(why);
+        // The pair after a 1 s unrecorded gap, in the same stroke.
+        StrokeData p;
+        try {
+          p = SimulateTruthLuGrePair(o.truth, r.pair, o.seed + r.stroke);
+        } catch (const std::exception& e) {
+          return fail(std::string("cannot simulate the LuGre pair: ") +
+                      e.what());
+        }
+        const double shift = d.t_s.back() + 1.0;
+        for (double& t : p.t_s) t += shift;
+        d.Append(p);
+        ++res.lugre_pairs;
+        res.lugre_fn_n = r.pair.fn_n;
+        res.lugre_truth = o.truth.ThetaAt(r.pair.fn_n);
+        s << " + LuGre pair at " << r.pair.fn_n << " N (1 slow, "
+          << r.pair.fast_strokes << " fast)";
+      }
+      s << ", " << d.size() << " samples";
       log(s.str());
       chunks.clear();
       const int n = static_cast<int>(d.size());
@@ -342,6 +441,19 @@ RobotSimResult RunRobotSimulation(const RobotSimOptions& o) {
           res.std_errors[u.model.term_names[i]] = u.model.std_errors[i];
         }
         res.sigma_eps = u.model.sigma_eps;
+        res.has_lugre = u.model.has_lugre;
+        if (u.model.has_lugre)
+          for (int i = 0; i < 6; ++i)
+            res.lugre_theta[i] = u.model.lugre_theta[i];
+        if (res.lugre_pairs > 0) {
+          res.lugre_checked = true;
+          res.lugre_mismatch =
+              res.has_lugre
+                  ? CompareLuGreToTruth(
+                        res.lugre_theta, res.lugre_truth, o.lugre_tolerances)
+                  : "the model has no LuGre family although the "
+                    "pair was performed";
+        }
         res.ok = true;
         log("model_update version " + std::to_string(u.model.version));
         return res;

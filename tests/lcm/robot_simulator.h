@@ -3,17 +3,31 @@
 /// A robot that talks to frictiond over LCM (docs/lcm.md), for end-to-end
 /// tests and by hand (frictiond_robot_sim): it asks for a material, and when
 /// the daemon does not know it, performs the requested test strokes by
-/// simulating them from a hidden true stochastic model (paper 000 eq. (1),
-/// testing::SimulateStrokes), streams them as chunks (optionally
+/// simulating them from a hidden truth, streams them as chunks (optionally
 /// duplicated, reordered, with a chunk held back until the daemon asks for
-/// it again), and waits for the fitted model (paper 000, Fig. 11).
+/// it again), waits for the fitted model (paper 000, Fig. 11) and checks it
+/// against the truth.
+///
+/// The hidden truth (testing::RobotTruth, frictiond/testing/robot_truth.h)
+/// is one friction law that is both the stochastic model of paper 000 eq.
+/// (1) in gross slip (mu = b0 + b1 v + b2 Fn + eps) and LuGre dynamics of
+/// paper 001 (every force history comes from the LuGre simulator,
+/// SimulateVelocityDriven, with theta(Fn): mu_c = b0 + b2 Fn, mu_s = mu_c +
+/// static_excess, sigma2 = b1). Each requested stroke is the Fn-v sweep of
+/// the plan; when the request (identification_request_v2) asks for the
+/// LuGre pair, the robot appends it after a 1 s unrecorded gap: at the
+/// plan's lugre_fn_n a slow triangle (quasi-static step) and the fast ones
+/// (dynamic step). The received LuGre family is compared with
+/// RobotTruth::ThetaAt(lugre_fn_n) (LuGreTolerances), the stochastic
+/// coefficients with b0, b1, b2.
 
+#include <cmath>
 #include <cstdint>
 #include <map>
 #include <string>
 #include <vector>
 
-#include "frictiond/testing/stroke_simulator.h"
+#include "frictiond/testing/robot_truth.h"
 
 namespace frictiond::testing {
 
@@ -23,8 +37,15 @@ struct RobotSimOptions {
   std::string robot = "sim-robot";
   std::string material;
   std::string fingertip = "default";
-  SimulationSpec truth;    ///< hidden true model and stroke shape
+  RobotTruth truth;        ///< hidden true friction law and sweep shape
   std::uint64_t seed = 7;  ///< stroke k uses seed + k
+  /// Act on identification_request_v2 and perform the LuGre pair when it
+  /// asks for one. false: an old robot that acts on identification_request_v1
+  /// only (sweep, no pair).
+  bool request_v2 = true;
+  /// Allowed errors of the received LuGre family (has_lugre) against the
+  /// truth at the pair's normal force.
+  LuGreTolerances lugre_tolerances;
   int chunk_samples = 250;
   bool duplicate = false;  ///< send every third chunk twice
   bool reorder = false;    ///< send chunks in a shuffled order
@@ -56,6 +77,21 @@ struct RobotSimResult {
   int resend_requests = 0;  ///< progress messages naming missing seqs
   int follow_ups = 0;       ///< follow-up identification requests
   double last_span_pct = -1;
+  int lugre_pairs = 0;               ///< strokes that ended with the LuGre pair
+  double lugre_fn_n = std::nan("");  ///< normal force of the (last) pair [N]
+  /// The received model's LuGre family (friction_model_v1 has_lugre,
+  /// lugre_theta: mu_s, mu_c, v0_mm_s, sigma2_s_mm, sigma0_per_mm,
+  /// sigma1_s_mm).
+  bool has_lugre = false;
+  LuGreTheta lugre_theta = LuGreTheta::Constant(std::nan(""));
+  /// The hidden truth it should match: RobotTruth::ThetaAt(lugre_fn_n)
+  /// (NaN when no pair was performed).
+  LuGreTheta lugre_truth = LuGreTheta::Constant(std::nan(""));
+  /// CompareLuGreToTruth(lugre_theta, lugre_truth, tolerances) when both
+  /// exist: "" = matches; otherwise what is off. Also set when a pair was
+  /// performed but no family came back.
+  std::string lugre_mismatch;
+  bool lugre_checked = false;    ///< a pair was performed and compared
   std::vector<std::string> log;  ///< one line per event, for failure output
 };
 

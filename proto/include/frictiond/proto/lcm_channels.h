@@ -14,6 +14,10 @@ inline constexpr const char* kLcmReplyChannel = "FRICTIOND_REPLY_V1";
 /// Daemon -> robot: identification_request_v1 (the test stroke to perform).
 inline constexpr const char* kLcmIdentRequestChannel =
     "FRICTIOND_IDENT_REQUEST_V1";
+/// Daemon -> robot: identification_request_v2 (v1's stroke plan plus the
+/// LuGre identifying pair), published beside v1.
+inline constexpr const char* kLcmIdentRequestV2Channel =
+    "FRICTIOND_IDENT_REQUEST_V2";
 /// Robot -> daemon: stroke_chunk_v1 (unsigned; accepted only when the daemon
 /// runs with lcm_allow_unsigned).
 inline constexpr const char* kLcmStrokeChannel = "FRICTIOND_STROKE_V1";

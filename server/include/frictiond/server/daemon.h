@@ -51,7 +51,10 @@ struct DaemonConfig {
   /// Reads a JSON config file:
   /// {"db","port","bind","data","lcm","max_body_mb","threads","open_reads",
   /// "bootstrap_token", "plan":
-  /// {"fn_min_n","fn_max_n","v_min_mm_s","v_max_mm_s","max_duration_s","min_span_pct"},
+  /// {"fn_min_n","fn_max_n","v_min_mm_s","v_max_mm_s","max_duration_s","min_span_pct",
+  /// "lugre_pair","lugre_fn_n","lugre_slow_accel_mm_s2","lugre_slow_peak_mm_s",
+  /// "lugre_fast_strokes","lugre_fast_accel_mm_s2","lugre_fast_peak_mm_s",
+  /// "lugre_rest_s"} (StrokePlanOptions),
   /// "lcm_keys": {"robot": "hex"}, "lcm_keys_file", "lcm_allow_unsigned",
   /// "lcm_max_skew_s"}.
   /// Keys not given keep their current value.

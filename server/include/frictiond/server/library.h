@@ -36,6 +36,18 @@ struct StrokePlanOptions {
   double max_duration_s = 120.0;
   double min_span_pct =
       50.0;  ///< coverage of the reference span that suffices (Fig. 10)
+  // The LuGre identifying pair (paper 001, Section III) that ends each
+  // requested stroke (docs/lcm.md "Stroke plan"), at one normal force: a
+  // slow triangle for the quasi-static step (<= 3 mm/s^2) and fast ones for
+  // the dynamic step (>= 5 mm/s^2; the daemon combines up to 4).
+  bool lugre_pair = true;   ///< false: the plan asks for no pair
+  double lugre_fn_n = 0.0;  ///< [N]; 0: the middle of [fn_min_n, fn_max_n]
+  double lugre_slow_accel_mm_s2 = 2.0;   ///< in (0, 3]
+  double lugre_slow_peak_mm_s = 20.0;    ///< > 0
+  int lugre_fast_strokes = 4;            ///< 1..12
+  double lugre_fast_accel_mm_s2 = 20.0;  ///< >= 5
+  double lugre_fast_peak_mm_s = 10.0;    ///< > 0
+  double lugre_rest_s = 1.0;             ///< between two triangles [s], >= 0.6
 };
 
 /// A model version as served: the parsed model and its JSON text.
