@@ -654,7 +654,7 @@ class LcmEndpointImpl {
                         /*with_missing=*/false);
       return;
     }
-    OnStrokeComplete(*job, m.robot, key);
+    OnStrokeComplete(*job, m.robot, key, type);
   }
 
   void PublishProgress(const IdentificationJob& job,
@@ -717,9 +717,36 @@ class LcmEndpointImpl {
                     /*with_missing=*/true);
   }
 
+  // Audit log entry for a write that came over LCM: actor "lcm:<robot>",
+  // role "robot" for signed chunks ("" for unsigned ones), the job's pair,
+  // and `detail` (status, version or why). A store that is down loses the
+  // entry, not the answer to the robot.
+  void AuditLcmWrite(const IdentificationJob& job,
+                     const std::string& robot,
+                     const char* type,
+                     json detail) {
+    const bool is_signed = std::string(type) == "stroke_chunk_v2";
+    AuditEntry e;
+    e.actor = ("lcm:" + robot).substr(0, 128);
+    e.role = is_signed ? "robot" : "";
+    e.action = std::string("LCM ") + type;
+    e.material = job.material;
+    detail["job"] = job.id;
+    detail["fingertip"] = job.fingertip;
+    detail["signed"] = is_signed;
+    e.detail = detail.dump();
+    try {
+      library_.store().AppendAudit(e);
+    } catch (const std::exception& ex) {
+      std::cerr << "frictiond: audit of an LCM write lost: " << ex.what()
+                << "\n";
+    }
+  }
+
   void OnStrokeComplete(IdentificationJob job,
                         const std::string& robot,
-                        const StrokeKey& key) {
+                        const StrokeKey& key,
+                        const char* type) {
     const StrokeProgress progress = *reassembler_.Progress(key);
     JobProgress& jp = jobs_[job.id];
     const json plan = json::parse(job.plan_json);
@@ -790,6 +817,7 @@ class LcmEndpointImpl {
                                 std::to_string(options_.max_strokes_per_job) +
                                 " strokes";
         library_.store().UpdateJob(job.id, "failed", why);
+        AuditLcmWrite(job, robot, type, {{"status", 422}, {"why", why}});
         PublishProgress(
             job, robot, progress, "failed", cov.span_pct, 0, why, false);
         jobs_.erase(job.id);
@@ -855,6 +883,12 @@ class LcmEndpointImpl {
           "fitted version " + std::to_string(r.version) + " (" + r.fit_status +
           (r.fit_note.empty() ? "" : ": " + r.fit_note) + "); " + span_text;
       library_.store().UpdateJob(job.id, "fitted", detail);
+      AuditLcmWrite(job,
+                    robot,
+                    type,
+                    {{"status", 201},
+                     {"version", r.version},
+                     {"strokes", jp.strokes.size()}});
       PublishProgress(job,
                       robot,
                       progress,
@@ -866,6 +900,11 @@ class LcmEndpointImpl {
     } catch (const RequestError& e) {
       const std::string why = std::string("identification failed: ") + e.what();
       library_.store().UpdateJob(job.id, "failed", why);
+      AuditLcmWrite(
+          job,
+          robot,
+          type,
+          {{"status", e.status()}, {"field", e.field()}, {"why", why}});
       PublishError("stroke_chunk_v1",
                    "",
                    robot,

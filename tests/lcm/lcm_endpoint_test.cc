@@ -290,6 +290,16 @@ TEST_F(LcmEndpointTest, TooLittleSpanGetsAFollowUpThenFails) {
   EXPECT_NE(job->detail.find("too little span coverage"), std::string::npos)
       << job->detail;
   ExpectNothingStored("felt");
+  // The failed LCM write is in the audit log, by the robot, for the pair.
+  const auto audit = library_->store().ListAudit(0, 100, "felt");
+  ASSERT_EQ(audit.size(), 1u);
+  EXPECT_EQ(audit[0].actor, "lcm:test");
+  EXPECT_EQ(audit[0].role, "");  // unsigned chunks
+  EXPECT_EQ(audit[0].action, "LCM stroke_chunk_v1");
+  const auto detail = nlohmann::json::parse(audit[0].detail);
+  EXPECT_EQ(detail["status"], 422) << audit[0].detail;
+  EXPECT_EQ(detail["job"], r.job_id) << audit[0].detail;
+  EXPECT_EQ(detail["signed"], false) << audit[0].detail;
   // Chunks for the failed job are rejected.
   c.stroke = 0;
   EXPECT_EQ(ExpectRejected(c).field, "job_id");

@@ -226,6 +226,20 @@ TEST_F(LcmWorkflowTest, UnknownMaterialIsIdentifiedFromASimulatedStroke) {
   EXPECT_EQ(j->state, "fitted");
   EXPECT_NE(j->detail.find("span"), std::string::npos) << j->detail;
   EXPECT_EQ(store->ListStrokes("sim-rubber", "default").size(), 1u);
+  // The write is audited: the robot (signed chunks), the version it made.
+  bool audited = false;
+  for (const AuditEntry& e : store->ListAudit(0, 100, "sim-rubber")) {
+    if (e.action != "LCM stroke_chunk_v2") continue;
+    audited = true;
+    EXPECT_EQ(e.actor, "lcm:" + o.robot);
+    EXPECT_EQ(e.role, "robot");
+    const auto detail = nlohmann::json::parse(e.detail);
+    EXPECT_EQ(detail["status"], 201) << e.detail;
+    EXPECT_EQ(detail["version"], r.model_version) << e.detail;
+    EXPECT_EQ(detail["job"], r.job_id) << e.detail;
+    EXPECT_EQ(detail["signed"], true) << e.detail;
+  }
+  EXPECT_TRUE(audited);
 }
 
 // Two robots at once on one daemon (two names, two keys): one whose truth
