@@ -609,7 +609,7 @@ class LcmEndpointImpl {
       }
       claimed_[job->id] = now_s;
     }
-    JobProgress& jp = jobs_[job->id];
+    JobProgress& jp = ProgressOf(*job);
     if (jp.done_strokes.count(m.stroke)) return;  // late duplicate
     if (m.stroke >= options_.max_strokes_per_job)
       return reject("stroke",
@@ -717,6 +717,57 @@ class LcmEndpointImpl {
                     /*with_missing=*/true);
   }
 
+  // Adds a complete stroke to the job's progress, with its slipping (Fn, v)
+  // samples for the span coverage (paper 000 III-E), labelled as the fit
+  // will label them (the pair's labelling, else the defaults).
+  void AddStroke(const IdentificationJob& job,
+                 StrokeData stroke,
+                 JobProgress* jp) {
+    SlipLabelOptions labelling;
+    if (auto prev = library_.FindModel(job.material, job.fingertip);
+        prev && prev->set.stochastic)
+      labelling = prev->set.stochastic->labelling;
+    StrokeData labelled = stroke;
+    EnsureLabels(&labelled, labelling);
+    const std::vector<bool> mask = CalcFitMask(labelled, labelling);
+    for (std::size_t i = 0; i < labelled.size(); ++i) {
+      if (!mask[i]) continue;
+      jp->slip_fn_n.push_back(labelled.fn_n[i]);
+      jp->slip_v_mm_s.push_back(labelled.v_mm_s[i]);
+    }
+    jp->strokes.push_back(std::move(stroke));
+  }
+
+  // The job's progress; on first use in this process it starts from the
+  // strokes the store keeps for the job (after a restart, or for a job taken
+  // over from a daemon that died).
+  JobProgress& ProgressOf(const IdentificationJob& job) {
+    if (auto it = jobs_.find(job.id); it != jobs_.end()) return it->second;
+    const auto kept = library_.store().ListJobStrokes(job.id);
+    JobProgress& jp = jobs_[job.id];
+    for (const auto& [index, csv] : kept) {
+      try {
+        AddStroke(job, ParseStrokeCsv(csv), &jp);
+        jp.done_strokes.insert(index);
+      } catch (const std::exception& e) {
+        std::cerr << "frictiond: kept stroke " << index << " of job " << job.id
+                  << " unreadable, asked again: " << e.what() << "\n";
+      }
+    }
+    return jp;
+  }
+
+  // Forgets a closed job's progress and its kept strokes.
+  void CloseJob(std::int64_t job_id) {
+    jobs_.erase(job_id);
+    try {
+      library_.store().DeleteJobStrokes(job_id);
+    } catch (const std::exception& e) {
+      std::cerr << "frictiond: kept strokes of job " << job_id
+                << " not deleted: " << e.what() << "\n";
+    }
+  }
+
   // Audit log entry for a write that came over LCM: actor "lcm:<robot>",
   // role "robot" for signed chunks ("" for unsigned ones), the job's pair,
   // and `detail` (status, version or why). A store that is down loses the
@@ -748,7 +799,7 @@ class LcmEndpointImpl {
                         const StrokeKey& key,
                         const char* type) {
     const StrokeProgress progress = *reassembler_.Progress(key);
-    JobProgress& jp = jobs_[job.id];
+    JobProgress& jp = ProgressOf(job);
     const json plan = json::parse(job.plan_json);
     StrokeData stroke;
     try {
@@ -779,24 +830,21 @@ class LcmEndpointImpl {
                       false);
       return;
     }
-    jp.done_strokes.insert(key.stroke);
-    // Span coverage of the job's slipping samples (paper 000 III-E): label
-    // slip as the fit will (the pair's labelling, else the defaults).
-    SlipLabelOptions labelling;
-    if (auto prev = library_.FindModel(job.material, job.fingertip);
-        prev && prev->set.stochastic)
-      labelling = prev->set.stochastic->labelling;
-    {
-      StrokeData labelled = stroke;
-      EnsureLabels(&labelled, labelling);
-      const std::vector<bool> mask = CalcFitMask(labelled, labelling);
-      for (std::size_t i = 0; i < labelled.size(); ++i) {
-        if (!mask[i]) continue;
-        jp.slip_fn_n.push_back(labelled.fn_n[i]);
-        jp.slip_v_mm_s.push_back(labelled.v_mm_s[i]);
-      }
+    // Kept in the store until the job closes: a restart (or a daemon taking
+    // the job over) continues with it instead of asking for it again.
+    try {
+      library_.store().PutJobStroke(
+          job.id, key.stroke, FormatStrokeCsv(stroke));
+    } catch (const std::exception& e) {
+      const std::string why =
+          std::string("the stroke could not be kept (store: ") + e.what() +
+          "); send it again";
+      PublishError(type, "", robot, job.id, key.stroke, -1, "store", why);
+      PublishProgress(job, robot, progress, job.state, -1, 0, why, false);
+      return;
     }
-    jp.strokes.push_back(std::move(stroke));
+    jp.done_strokes.insert(key.stroke);
+    AddStroke(job, std::move(stroke), &jp);
     const SpanRect plan_span = PlanSpan(plan);
     const SpanCoverage cov =
         CalcSpanCoverage(jp.slip_fn_n, jp.slip_v_mm_s, plan_span);
@@ -818,9 +866,9 @@ class LcmEndpointImpl {
                                 " strokes";
         library_.store().UpdateJob(job.id, "failed", why);
         AuditLcmWrite(job, robot, type, {{"status", 422}, {"why", why}});
+        CloseJob(job.id);  // before the robot hears of it
         PublishProgress(
             job, robot, progress, "failed", cov.span_pct, 0, why, false);
-        jobs_.erase(job.id);
         return;
       }
       // A follow-up stroke for the missing region instead of a weak model.
@@ -889,6 +937,7 @@ class LcmEndpointImpl {
                     {{"status", 201},
                      {"version", r.version},
                      {"strokes", jp.strokes.size()}});
+      CloseJob(job.id);  // before the robot hears of it
       PublishProgress(job,
                       robot,
                       progress,
@@ -905,6 +954,7 @@ class LcmEndpointImpl {
           robot,
           type,
           {{"status", e.status()}, {"field", e.field()}, {"why", why}});
+      CloseJob(job.id);
       PublishError("stroke_chunk_v1",
                    "",
                    robot,
@@ -916,7 +966,6 @@ class LcmEndpointImpl {
       PublishProgress(
           job, robot, progress, "failed", cov.span_pct, 0, why, false);
     }
-    jobs_.erase(job.id);
   }
 
   FrictionLibrary& library_;

@@ -83,6 +83,12 @@ CREATE TABLE audit(
   material TEXT NOT NULL, detail TEXT NOT NULL);
 CREATE INDEX audit_material ON audit(material, id);
 )sql",
+    // Complete strokes of open jobs (PutJobStroke), kept across restarts.
+    R"sql(
+CREATE TABLE job_strokes(
+  job_id BIGINT NOT NULL REFERENCES jobs(id) ON DELETE CASCADE,
+  stroke INTEGER NOT NULL, csv BYTEA NOT NULL, PRIMARY KEY(job_id, stroke));
+)sql",
 };
 
 std::string TagsToJson(const std::vector<std::string>& tags) {
@@ -569,6 +575,40 @@ class PgStore final : public Store {
               kJobColumns,
           Params().Text(worker).Text(NowIso8601()).Int(id));
       return ReadJob(r, 0);
+    });
+  }
+
+  bool PutJobStroke(std::int64_t job_id,
+                    int stroke,
+                    const std::string& csv) override {
+    return Write([&](Tx& tx) {
+      const Result r = tx.Exec(
+          "INSERT INTO job_strokes(job_id,stroke,csv) SELECT $1,$2,$3 WHERE "
+          "EXISTS (SELECT 1 FROM jobs WHERE id=$1) ON CONFLICT (job_id,stroke) "
+          "DO UPDATE SET csv=EXCLUDED.csv RETURNING job_id",
+          Params().Int(job_id).Int(stroke).Bytes(csv));
+      return r.Rows() == 1;
+    });
+  }
+
+  std::vector<std::pair<int, std::string>> ListJobStrokes(
+      std::int64_t job_id) override {
+    return Read([&](PGconn* c) {
+      const Result r = Exec(c,
+                            "SELECT stroke,csv FROM job_strokes WHERE "
+                            "job_id=$1 ORDER BY stroke",
+                            Params().Int(job_id));
+      std::vector<std::pair<int, std::string>> out;
+      for (int i = 0; i < r.Rows(); ++i)
+        out.emplace_back(static_cast<int>(r.Int(i, 0)), r.Bytes(i, 1));
+      return out;
+    });
+  }
+
+  void DeleteJobStrokes(std::int64_t job_id) override {
+    Write([&](Tx& tx) {
+      tx.Exec("DELETE FROM job_strokes WHERE job_id=$1", Params().Int(job_id));
+      return true;
     });
   }
 

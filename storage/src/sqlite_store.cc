@@ -91,6 +91,12 @@ CREATE INDEX audit_material ON audit(material, id);
     R"sql(
 ALTER TABLE jobs ADD COLUMN claimed_by TEXT NOT NULL DEFAULT '';
 )sql",
+    // Complete strokes of open jobs (PutJobStroke), kept across restarts.
+    R"sql(
+CREATE TABLE job_strokes(
+  job_id INTEGER NOT NULL REFERENCES jobs(id) ON DELETE CASCADE,
+  stroke INTEGER NOT NULL, csv BLOB NOT NULL, PRIMARY KEY(job_id, stroke));
+)sql",
 };
 
 constexpr const char* kOpenStates =
@@ -576,6 +582,40 @@ class SqliteStore final : public Store {
     std::vector<IdentificationJob> out;
     while (s.Step()) out.push_back(ReadJob(s));
     return out;
+  }
+
+  bool PutJobStroke(std::int64_t job_id,
+                    int stroke,
+                    const std::string& csv) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (!GetJobLocked(job_id)) return false;
+    Stmt(
+        "INSERT OR REPLACE INTO job_strokes(job_id,stroke,csv) "
+        "VALUES(?,?,?)")
+        .Reset()
+        .Bind(job_id)
+        .Bind(static_cast<std::int64_t>(stroke))
+        .BindBlob(csv)
+        .Run();
+    return true;
+  }
+
+  std::vector<std::pair<int, std::string>> ListJobStrokes(
+      std::int64_t job_id) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto& s = Stmt(
+                  "SELECT stroke,csv FROM job_strokes WHERE job_id=? "
+                  "ORDER BY stroke")
+                  .Reset()
+                  .Bind(job_id);
+    std::vector<std::pair<int, std::string>> out;
+    while (s.Step()) out.emplace_back(static_cast<int>(s.Int(0)), s.Text(1));
+    return out;
+  }
+
+  void DeleteJobStrokes(std::int64_t job_id) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    Stmt("DELETE FROM job_strokes WHERE job_id=?").Reset().Bind(job_id).Run();
   }
 
   std::int64_t AddImage(const ImageRecord& image) override {

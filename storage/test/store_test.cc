@@ -356,6 +356,27 @@ TEST_P(StoreTest, DeadWorkersClaimIsTakenOverAfterTheLease) {
                std::invalid_argument);
 }
 
+// Strokes of an open job are kept (replaced per stroke index), listed in
+// stroke order, dropped on request; an unknown job keeps nothing.
+TEST_P(StoreTest, JobStrokesAreKeptUntilDropped) {
+  IdentificationJob j;
+  j.material = "m";
+  j.plan_json = "{}";
+  const auto job = store_->RequestIdentification(j);
+  const std::string binary("t_s,fn_n\n0,1\n\0\xff", 15);
+  EXPECT_TRUE(store_->PutJobStroke(job.id, 1, "second"));
+  EXPECT_TRUE(store_->PutJobStroke(job.id, 0, "first"));
+  EXPECT_TRUE(store_->PutJobStroke(job.id, 1, binary));  // replaces
+  EXPECT_FALSE(store_->PutJobStroke(job.id + 1000, 0, "x"));
+  EXPECT_TRUE(store_->ListJobStrokes(job.id + 1000).empty());
+  const auto kept = store_->ListJobStrokes(job.id);
+  ASSERT_EQ(kept.size(), 2u);
+  EXPECT_EQ(kept[0], std::make_pair(0, std::string("first")));
+  EXPECT_EQ(kept[1], std::make_pair(1, binary));
+  store_->DeleteJobStrokes(job.id);
+  EXPECT_TRUE(store_->ListJobStrokes(job.id).empty());
+}
+
 TEST(OpenStore, RejectsUnsupportedUrl) {
   // Unbuilt back end (invalid_argument) or unreachable server
   // (StoreUnavailable); either way no store.

@@ -45,6 +45,10 @@ class LcmEndpointTest : public ::testing::Test {
       }
       return r;
     };
+    // As the daemon (host:port): the same identity after a restart, so it
+    // still holds its claims.
+    o.worker_id = "test-daemon";
+    endpoint_options_ = o;
     endpoint_ = std::make_unique<LcmEndpoint>(*library_, o);
     endpoint_->Start();
     inbox_ = std::make_unique<LcmInbox>(url_);
@@ -122,6 +126,7 @@ class LcmEndpointTest : public ::testing::Test {
 
   std::string url_;
   std::unique_ptr<FrictionLibrary> library_;
+  LcmEndpointOptions endpoint_options_;
   std::unique_ptr<LcmEndpoint> endpoint_;
   std::unique_ptr<LcmInbox> inbox_;
   int request_counter_ = 0;
@@ -303,6 +308,44 @@ TEST_F(LcmEndpointTest, TooLittleSpanGetsAFollowUpThenFails) {
   // Chunks for the failed job are rejected.
   c.stroke = 0;
   EXPECT_EQ(ExpectRejected(c).field, "job_id");
+}
+
+// A complete stroke of an open job is kept in the store: an endpoint that
+// starts again on the same store (a daemon restart) continues the job with
+// it. Here the kept stroke 0 and the new stroke 1 together reach the job's
+// limit of two strokes, so the job fails for too little span; an endpoint
+// that had lost stroke 0 would ask for a third stroke instead.
+TEST_F(LcmEndpointTest, KeptStrokeSurvivesARestart) {
+  const material_reply_v1 r = Query("felt");
+  ASSERT_EQ(r.status, +material_reply_v1::STATUS_UNKNOWN);
+  stroke_chunk_v1 c = MakeChunk(r.job_id, 0, 1, true);
+  inbox_->lcm().publish(kLcmStrokeChannel, &c);
+  ASSERT_TRUE(inbox_->WaitFor([&] {
+    for (const auto& q : inbox_->requests)
+      if (q.follow_up && q.stroke == 1) return true;
+    return false;
+  })) << "no follow-up request";
+  ASSERT_EQ(library_->store().ListJobStrokes(r.job_id).size(), 1u);
+  // Restart: the endpoint's memory is gone, the store is not.
+  endpoint_->Stop();
+  endpoint_ = std::make_unique<LcmEndpoint>(*library_, endpoint_options_);
+  endpoint_->Start();
+  const std::size_t progress_before = inbox_->progress.size();
+  c.stroke = 1;
+  inbox_->lcm().publish(kLcmStrokeChannel, &c);
+  ASSERT_TRUE(inbox_->WaitFor([&] {
+    for (std::size_t i = progress_before; i < inbox_->progress.size(); ++i)
+      if (inbox_->progress[i].state == "failed" ||
+          inbox_->progress[i].state == "stroking")
+        return true;
+    return false;
+  }));
+  const auto job = library_->store().GetJob(r.job_id);
+  EXPECT_EQ(job->state, "failed") << job->detail;
+  EXPECT_NE(job->detail.find("in 2 stroke(s)"), std::string::npos)
+      << job->detail;
+  // Closed: its kept strokes are dropped.
+  EXPECT_TRUE(library_->store().ListJobStrokes(r.job_id).empty());
 }
 
 TEST_F(LcmEndpointTest, MissingChunkIsAskedAgainThenDropped) {

@@ -18,6 +18,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace frictiond {
@@ -209,6 +210,20 @@ class Store {
                                   " (must be > 0)");
     return DoClaimJob(id, worker, lease_s);
   }
+
+  // --- strokes of open identification jobs ----------------------------------
+  /// Keeps a complete stroke of an open job (CSV text, stroke_csv.h) until
+  /// the job is fitted or fails, so that a daemon restart does not lose it;
+  /// a second copy of the same stroke index replaces the first. Deleting the
+  /// job deletes its strokes. @return false when the job does not exist.
+  virtual bool PutJobStroke(std::int64_t job_id,
+                            int stroke,
+                            const std::string& csv) = 0;
+  /// The kept strokes of a job as (stroke index, CSV), by stroke index.
+  virtual std::vector<std::pair<int, std::string>> ListJobStrokes(
+      std::int64_t job_id) = 0;
+  /// Drops the kept strokes of a job (once they are ingested or useless).
+  virtual void DeleteJobStrokes(std::int64_t job_id) = 0;
 
   // --- images ---------------------------------------------------------------
   virtual std::int64_t AddImage(const ImageRecord& image) = 0;
