@@ -354,16 +354,28 @@ __attribute__((target("avx2,fma"))) void ShiftedMomentsAvx2(
 }
 #endif
 
-void AccumulateShiftedMoments(const MomentBlock& b) {
+bool CpuHasAvx2() {
 #if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
   static const bool has_avx2 =
       __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-  if (has_avx2) return ShiftedMomentsAvx2(b);
+  return has_avx2;
+#else
+  return false;
+#endif
+}
+
+void AccumulateShiftedMoments(const MomentBlock& b, bool avx2) {
+#if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
+  if (avx2) return ShiftedMomentsAvx2(b);
 #endif
   ShiftedMomentsBaseline(b);
 }
 
 }  // namespace
+
+bool OlsUsesAvx2(const OlsOptions& options) {
+  return options.allow_avx2 && CpuHasAvx2();
+}
 
 OlsResult FitOls(const Eigen::Ref<const Eigen::MatrixXd>& X,
                  const Eigen::Ref<const Eigen::VectorXd>& y,
@@ -408,6 +420,7 @@ OlsResult FitOls(const Eigen::Ref<const Eigen::MatrixXd>& X,
     column_index.push_back(k);
   }
   const int c = static_cast<int>(columns.size());
+  const bool avx2 = OlsUsesAvx2(options);
   std::vector<double> column_shift(c);
   for (int j = 0; j < c; ++j) column_shift[j] = shift(column_index[j]);
   std::vector<double> block_sum(c), block_gram(c * c);
@@ -421,7 +434,8 @@ OlsResult FitOls(const Eigen::Ref<const Eigen::MatrixXd>& X,
                                          i0,
                                          len,
                                          block_sum.data(),
-                                         block_gram.data()});
+                                         block_gram.data()},
+                             avx2);
     for (int u = 0; u < c; ++u) {
       sum(column_index[u]) += block_sum[u];
       for (int w = 0; w <= u; ++w)

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iostream>
 #include <random>
 #include <string>
 #include <utility>
@@ -68,6 +69,10 @@ TEST(FitOls, RecoversTruthWithinStandardErrorsAtOddSizes) {
 // (must not be taken for the intercept), and a design wider than the
 // unrolled kernels. Statistics with and without the residual vector agree.
 TEST(FitOls, KernelsAndStatisticsWithoutResidualsMatchQr) {
+  EXPECT_FALSE(OlsUsesAvx2(OlsOptions{true, false}));
+  std::cout << "FitOls kernels here: "
+            << (OlsUsesAvx2(OlsOptions{}) ? "AVX2+FMA" : "SSE2")
+            << " (baseline SSE2 also tested)\n";
   for (int n : {9, 4097, 10001}) {
     const Data base = MakeData(n, 0.0, 20 + n);
     std::vector<std::pair<std::string, Data>> cases;
@@ -93,6 +98,9 @@ TEST(FitOls, KernelsAndStatisticsWithoutResidualsMatchQr) {
     for (const auto& [name, d] : cases) {
       const OlsResult with = FitOls(d.X, d.y);
       const OlsResult without = FitOls(d.X, d.y, OlsOptions{false});
+      // The baseline (SSE2) kernels, whichever the CPU would choose.
+      const OlsResult baseline = FitOls(d.X, d.y, OlsOptions{true, false});
+      ASSERT_EQ(baseline.status, FitStatus::kOk) << name << " n " << n;
       ASSERT_EQ(with.status, FitStatus::kOk) << name << " n " << n;
       ASSERT_EQ(without.status, FitStatus::kOk) << name << " n " << n;
       EXPECT_EQ(without.residuals.size(), 0) << name;
@@ -108,6 +116,15 @@ TEST(FitOls, KernelsAndStatisticsWithoutResidualsMatchQr) {
             << name << " n " << n << " k " << k;
       }
       EXPECT_NEAR(with.residuals.squaredNorm(), rss, 1e-9 * rss) << name;
+      for (int k = 0; k < d.X.cols(); ++k) {
+        EXPECT_NEAR(baseline.beta(k), ref(k), 1e-9 * (1 + std::abs(ref(k))))
+            << "baseline kernels: " << name << " n " << n << " k " << k;
+        EXPECT_NEAR(
+            baseline.std_err(k), with.std_err(k), 1e-9 * with.std_err(k))
+            << "baseline kernels: " << name << " n " << n << " k " << k;
+      }
+      EXPECT_NEAR(baseline.sigma_eps, with.sigma_eps, 1e-9 * with.sigma_eps)
+          << "baseline kernels: " << name;
       EXPECT_NEAR(without.sigma_eps, with.sigma_eps, 1e-9 * with.sigma_eps)
           << name << " n " << n;
       EXPECT_NEAR(without.r2, with.r2, 1e-9) << name << " n " << n;

@@ -105,7 +105,13 @@ struct OlsOptions {
   /// pass (relative error ~1e-12 of the total sum of squares) and
   /// `residuals` stays empty.
   bool residuals = true;
+  /// Use the AVX2+FMA moment kernels when the CPU has them (else SSE2).
+  /// False forces the baseline kernels (tests; results agree to rounding).
+  bool allow_avx2 = true;
 };
+
+/// True when FitOls with `options` runs the AVX2+FMA kernels here.
+bool OlsUsesAvx2(const OlsOptions& options);
 
 /// Least squares of y on the columns of X. Column 0 may be an intercept (a
 /// column of ones); columns that are (numerically) constant or collinear with
