@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "frictiond/client/html.h"
+#include "frictiond/proto/sim_export.h"
 
 namespace frictiond {
 
@@ -166,9 +166,9 @@ std::string RenderJointReportHtml(const std::string& material,
   std::string html =
       "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>Joint "
       "friction: " +
-      EscapeHtml(material) + " / " + EscapeHtml(joint) +
-      "</title></head><body>\n<h1>Joint friction: " + EscapeHtml(material) +
-      " / " + EscapeHtml(joint) +
+      XmlEscape(material) + " / " + XmlEscape(joint) +
+      "</title></head><body>\n<h1>Joint friction: " + XmlEscape(material) +
+      " / " + XmlEscape(joint) +
       "</h1>\n<h2>Friction against Sommerfeld number "
       "(paper 002, eq. 1)</h2>\n";
   if (f.mixed.theta.size() == 4 && f.mixed.theta.allFinite() &&
@@ -182,8 +182,8 @@ std::string RenderJointReportHtml(const std::string& material,
         "Sommerfeld span of the data.</p>\n";
   } else {
     html += "<p>The mixed model is not identified (" +
-            EscapeHtml(ToString(f.mixed.status)) + ": " +
-            EscapeHtml(f.mixed.why) + ").</p>\n";
+            XmlEscape(ToString(f.mixed.status)) + ": " +
+            XmlEscape(f.mixed.why) + ").</p>\n";
   }
   html +=
       "<h2>Models</h2>\n<table border=\"1\" cellpadding=\"4\"><tr><th>model</"
@@ -205,9 +205,8 @@ std::string RenderJointReportHtml(const std::string& material,
     for (const JointModelScore& s : f.scores)
       if (s.kind == r.kind) rmse = s.heldout_rmse;
     html += "<tr><td>" + ToString(r.kind) + "</td><td>" +
-            EscapeHtml(ToString(r.status)) + "</td><td>" + params +
-            "</td><td>" + (std::isfinite(rmse) ? Fmt("%.4g", rmse) : "-") +
-            "</td></tr>\n";
+            XmlEscape(ToString(r.status)) + "</td><td>" + params + "</td><td>" +
+            (std::isfinite(rmse) ? Fmt("%.4g", rmse) : "-") + "</td></tr>\n";
   }
   html += "</table>\n";
   if (grid.is_object()) {

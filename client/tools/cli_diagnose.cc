@@ -12,11 +12,11 @@
 #include <string>
 #include <vector>
 
-#include "frictiond/client/html.h"
 #include "frictiond/estimators/diagnosis.h"
 #include "frictiond/estimators/regression.h"
 #include "frictiond/proto/diagnosis_json.h"
 #include "frictiond/proto/lugre_json.h"
+#include "frictiond/proto/sim_export.h"
 
 #include "cli.h"
 
@@ -194,7 +194,7 @@ std::string ResidualSvg(const std::vector<double>& x,
   }
   s << "'/>";
   s << "<text x='" << (L + W - R) / 2 << "' y='" << H - 10
-    << "' text-anchor='middle' font-size='12'>" << EscapeHtml(label) << " ("
+    << "' text-anchor='middle' font-size='12'>" << XmlEscape(label) << " ("
     << Fmt(x0) << " .. " << Fmt(x1) << ")</text>";
   s << "<text x='12' y='" << (T + H - B) / 2
     << "' font-size='12' transform='rotate(-90 12 " << (T + H - B) / 2
@@ -217,8 +217,8 @@ void WriteReport(const std::string& path,
     << "td,th{border:1px solid #ccc;padding:3px "
        "8px;text-align:right}</style></head><body>";
   h << "<h1>Model diagnosis</h1><p>Files:";
-  for (const auto& f : files) h << " <code>" << EscapeHtml(f) << "</code>";
-  h << "</p><p>Status: " << ToString(r.status) << " " << EscapeHtml(r.why)
+  for (const auto& f : files) h << " <code>" << XmlEscape(f) << "</code>";
+  h << "</p><p>Status: " << ToString(r.status) << " " << XmlEscape(r.why)
     << ". " << r.samples << " samples, " << r.fit_samples << " slipping, "
     << r.strokes << " strokes, " << r.folds << " stroke folds; slip thresholds "
     << Fmt(o.labelling.peak_mm_s) << " / " << Fmt(o.labelling.floor_mm_s)
@@ -242,13 +242,13 @@ void WriteReport(const std::string& path,
   if (r.findings.empty()) h << "<p>Nothing significant.</p>";
   h << "<ol>";
   for (const Finding& f : r.findings) {
-    h << "<li><b>" << EscapeHtml(f.cause) << "</b> (" << f.kind << ", "
-      << EscapeHtml(f.expansion) << "): held-out gain "
-      << Fmt(f.cv_mae_gain_pct) << " %, p = " << Fmt(f.p_value, 2) << ". "
-      << EscapeHtml(f.effect) << "</li>";
+    h << "<li><b>" << XmlEscape(f.cause) << "</b> (" << f.kind << ", "
+      << XmlEscape(f.expansion) << "): held-out gain " << Fmt(f.cv_mae_gain_pct)
+      << " %, p = " << Fmt(f.p_value, 2) << ". " << XmlEscape(f.effect)
+      << "</li>";
   }
   h << "</ol><p>Baseline cv_mae " << Fmt(r.baseline.cv_mae, 4)
-    << "; extended <code>" << EscapeHtml(r.extended.model) << "</code> cv_mae "
+    << "; extended <code>" << XmlEscape(r.extended.model) << "</code> cv_mae "
     << Fmt(r.extended.cv_mae, 4) << " (gain " << Fmt(r.gain_pct) << " %).</p>";
   // Top candidates: findings first, then the best step-0 tests.
   std::vector<std::pair<std::string, std::string>> top;
@@ -275,7 +275,7 @@ void WriteReport(const std::string& path,
     const std::vector<double> x =
         PlotAxis(data, r.fit_rows, cause, kind, &label);
     if (x.empty()) continue;
-    h << "<h3>" << EscapeHtml(cause) << " (" << kind << ")</h3>"
+    h << "<h3>" << XmlEscape(cause) << " (" << kind << ")</h3>"
       << ResidualSvg(x, r.baseline_residuals, label);
   }
   h << "</body></html>\n";

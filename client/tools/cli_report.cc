@@ -11,7 +11,6 @@
 #include <utility>
 #include <vector>
 
-#include "frictiond/client/html.h"
 #include "frictiond/estimators/friction_forms.h"
 #include "frictiond/estimators/mu_windows.h"
 #include "frictiond/estimators/preprocessing.h"
@@ -19,6 +18,7 @@
 #include "frictiond/estimators/span_coverage.h"
 #include "frictiond/estimators/span_variability.h"
 #include "frictiond/estimators/stochastic_model.h"
+#include "frictiond/proto/sim_export.h"
 
 #include "cli.h"
 
@@ -80,12 +80,12 @@ class SvgPlot {
         "<rect x='60' y='30' width='400' height='220' fill='none' "
         "stroke='#333'/>";
     s += "<text x='260' y='20' text-anchor='middle' font-size='13'>" +
-         EscapeHtml(title_) + "</text>";
+         XmlEscape(title_) + "</text>";
     s += "<text x='260' y='290' text-anchor='middle' font-size='12'>" +
-         EscapeHtml(xlabel_) + "</text>";
+         XmlEscape(xlabel_) + "</text>";
     s += "<text x='14' y='140' font-size='12' transform='rotate(-90 14 140)' "
          "text-anchor='middle'>" +
-         EscapeHtml(ylabel_) + "</text>";
+         XmlEscape(ylabel_) + "</text>";
     for (int k = 0; k <= 4; ++k) {
       const double xv = x0_ + k * (x1_ - x0_) / 4;
       const double yv = y0_ + k * (y1_ - y0_) / 4;
@@ -404,11 +404,11 @@ std::string BuildReport(const std::string& name,
   std::string html =
       "<!DOCTYPE html>\n<html><head><meta charset='utf-8'><title>friction "
       "report: " +
-      EscapeHtml(name) +
+      XmlEscape(name) +
       "</title><style>body{font-family:sans-serif;max-width:1000px;margin:"
       "auto}table{border-collapse:collapse}td,th{border:1px solid "
       "#999;padding:4px;vertical-align:top}</style></head><body>\n";
-  html += "<h1>Paper 000 claims on " + EscapeHtml(name) + "</h1>\n";
+  html += "<h1>Paper 000 claims on " + XmlEscape(name) + "</h1>\n";
   html += "<p>" + std::to_string(data.size()) + " samples, " +
           std::to_string(m.strokes) + " strokes with slip, " +
           std::to_string(mu.size()) +
@@ -419,9 +419,8 @@ std::string BuildReport(const std::string& name,
       "<table><tr><th>paper 000 claim</th><th>this data</th><th>"
       "verdict</th></tr>\n";
   for (const Claim& c : claims) {
-    html += "<tr><td>" + EscapeHtml(c.claim) + "</td><td>" +
-            EscapeHtml(c.shows) + "</td><td>" + EscapeHtml(c.verdict) +
-            "</td></tr>\n";
+    html += "<tr><td>" + XmlEscape(c.claim) + "</td><td>" + XmlEscape(c.shows) +
+            "</td><td>" + XmlEscape(c.verdict) + "</td></tr>\n";
   }
   html += "</table>\n" + plots + "</body></html>\n";
   return html;

@@ -110,7 +110,9 @@ struct Request {
   LuGrePairShape pair;
 };
 
-Request FromV1(const identification_request_v1& r) {
+// The fields v1 and v2 share (v2 is v1 plus the LuGre pair).
+template <typename Message>
+Request FromCommonFields(const Message& r) {
   Request q;
   q.job_id = r.job_id;
   q.stroke = r.stroke;
@@ -122,15 +124,12 @@ Request FromV1(const identification_request_v1& r) {
   return q;
 }
 
+Request FromV1(const identification_request_v1& r) {
+  return FromCommonFields(r);
+}
+
 Request FromV2(const identification_request_v2& r) {
-  Request q;
-  q.job_id = r.job_id;
-  q.stroke = r.stroke;
-  q.follow_up = r.follow_up;
-  q.fn_min_n = r.fn_min_n;
-  q.fn_max_n = r.fn_max_n;
-  q.v_min_mm_s = r.v_min_mm_s;
-  q.v_max_mm_s = r.v_max_mm_s;
+  Request q = FromCommonFields(r);
   q.lugre_pair = r.lugre_pair;
   if (r.lugre_pair) {
     q.pair.fn_n = r.lugre_fn_n;

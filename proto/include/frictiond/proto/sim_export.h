@@ -68,7 +68,8 @@ inline constexpr double kMujocoRollingFriction = 0.0001;
 /// long or not printable ASCII, or risk is out of range.
 std::string FormatSimExport(SimFormat format, const SimExportInput& in);
 
-/// Escapes &, <, >, " and ' for XML text and attribute values.
+/// Escapes &, <, >, " and ' for XML text and attribute values (also used
+/// for the HTML/SVG reports of the client tools).
 std::string XmlEscape(const std::string& text);
 /// Makes text safe inside <!-- -->: no "--" and no trailing '-'.
 std::string XmlCommentText(const std::string& text);
