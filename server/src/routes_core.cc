@@ -48,8 +48,6 @@ std::shared_ptr<const CachedModel> ModelFor(FrictionLibrary& lib,
   return lib.RequireModel(id, fingertip, Requester(req));
 }
 
-namespace {
-
 const StochasticFrictionModel& Stochastic(const CachedModel& m) {
   if (!m.set.stochastic) {
     throw RequestError(422,
@@ -59,6 +57,8 @@ const StochasticFrictionModel& Stochastic(const CachedModel& m) {
   }
   return *m.set.stochastic;
 }
+
+namespace {
 
 bool IsCsvContentType(const std::string& ct) {
   const std::string base = ct.substr(0, ct.find(';'));

@@ -96,7 +96,9 @@ double FittedMean(const StochasticFrictionModel& m,
   return it->second.mean;
 }
 
-const StochasticFrictionModel& Stochastic(const CachedModel& m) {
+// As Stochastic (routes.h), with the material in the message: exports
+// name the material they were asked for.
+const StochasticFrictionModel& StochasticNamingMaterial(const CachedModel& m) {
   if (!m.set.stochastic) {
     throw RequestError(422,
                        "model",
@@ -179,7 +181,7 @@ HttpResponse Export(FrictionLibrary& lib, const HttpRequest& req) {
   } else {
     model = lib.RequireModel(id, fingertip, Requester(req));
   }
-  const StochasticFrictionModel& m = Stochastic(*model);
+  const StochasticFrictionModel& m = StochasticNamingMaterial(*model);
   SimExportInput in;
   in.name = name;
   in.material = id;
@@ -230,7 +232,7 @@ HttpResponse PairFriction(FrictionLibrary& lib, const HttpRequest& req) {
   auto measured = lib.FindModel(object, tip);
   if (!measured && tip != object) measured = lib.FindModel(tip, object);
   if (measured) {
-    const StochasticFrictionModel& m = Stochastic(*measured);
+    const StochasticFrictionModel& m = StochasticNamingMaterial(*measured);
     const std::string& mat = measured->set.material;
     const double fn = op.fn_n ? *op.fn_n : FittedMean(m, "fn_n", mat);
     const double v = op.v_mm_s ? *op.v_mm_s : FittedMean(m, "v_mm_s", mat);
@@ -274,8 +276,8 @@ HttpResponse PairFriction(FrictionLibrary& lib, const HttpRequest& req) {
             "' to combine: an identification of the pair was requested",
         extra);
   }
-  const StochasticFrictionModel& sa = Stochastic(*ma);
-  const StochasticFrictionModel& sb = Stochastic(*mb);
+  const StochasticFrictionModel& sa = StochasticNamingMaterial(*ma);
+  const StochasticFrictionModel& sb = StochasticNamingMaterial(*mb);
   // Default operating point: the mean of the two models' fitted means.
   const double fn = op.fn_n ? *op.fn_n
                             : 0.5 * (FittedMean(sa, "fn_n", tip) +

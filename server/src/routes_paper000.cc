@@ -21,16 +21,6 @@ using nlohmann::json;
 
 namespace {
 
-const StochasticFrictionModel& Stochastic(const CachedModel& m) {
-  if (!m.set.stochastic) {
-    throw RequestError(422,
-                       "model",
-                       "model version " + std::to_string(m.set.version) +
-                           " has no stochastic model");
-  }
-  return *m.set.stochastic;
-}
-
 // A required query number that must be > 0 (strict) or >= 0.
 double ForceParam(const HttpRequest& req,
                   const std::string& name,

@@ -118,6 +118,15 @@ class LcmEndpointTest : public ::testing::Test {
     return c;
   }
 
+  // Waits for the follow-up identification request asking for `stroke`.
+  bool WaitForFollowUp(int stroke) {
+    return inbox_->WaitFor([&] {
+      for (const auto& q : inbox_->requests)
+        if (q.follow_up && q.stroke == stroke) return true;
+      return false;
+    });
+  }
+
   void ExpectNothingStored(const std::string& material) {
     EXPECT_TRUE(library_->store().ListStrokes(material, "default").empty());
     EXPECT_FALSE(library_->store().GetLatestModel(material, "default"));
@@ -267,11 +276,7 @@ TEST_F(LcmEndpointTest, TooLittleSpanGetsAFollowUpThenFails) {
   // A complete one-chunk stroke at one operating point: no span at all.
   stroke_chunk_v1 c = MakeChunk(r.job_id, 0, 1, true);
   inbox_->lcm().publish(kLcmStrokeChannel, &c);
-  ASSERT_TRUE(inbox_->WaitFor([&] {
-    for (const auto& q : inbox_->requests)
-      if (q.follow_up && q.stroke == 1) return true;
-    return false;
-  })) << "no follow-up request";
+  ASSERT_TRUE(WaitForFollowUp(1)) << "no follow-up request";
   const identification_request_v1& follow = inbox_->requests.back();
   EXPECT_EQ(follow.job_id, r.job_id);
   // Covered: only fn 2 N, v 20 mm/s. Missing: the larger uncovered end of
@@ -320,11 +325,7 @@ TEST_F(LcmEndpointTest, KeptStrokeSurvivesARestart) {
   ASSERT_EQ(r.status, +material_reply_v1::STATUS_UNKNOWN);
   stroke_chunk_v1 c = MakeChunk(r.job_id, 0, 1, true);
   inbox_->lcm().publish(kLcmStrokeChannel, &c);
-  ASSERT_TRUE(inbox_->WaitFor([&] {
-    for (const auto& q : inbox_->requests)
-      if (q.follow_up && q.stroke == 1) return true;
-    return false;
-  })) << "no follow-up request";
+  ASSERT_TRUE(WaitForFollowUp(1)) << "no follow-up request";
   ASSERT_EQ(library_->store().ListJobStrokes(r.job_id).size(), 1u);
   // Restart: the endpoint's memory is gone, the store is not.
   endpoint_->Stop();

@@ -74,4 +74,8 @@ std::string Requester(const HttpRequest& req);
 std::shared_ptr<const CachedModel> ModelFor(FrictionLibrary& lib,
                                             const HttpRequest& req);
 
+/// The stochastic family of a served model; 422 (field "model") when the
+/// version has none.
+const StochasticFrictionModel& Stochastic(const CachedModel& m);
+
 }  // namespace frictiond
