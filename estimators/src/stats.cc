@@ -124,40 +124,56 @@ double SortedQuantile(const std::vector<double>& sorted, double p) {
 
 namespace {
 
-// Ascending sort of doubles (no NaN) by LSD radix on their order-preserving
-// 64-bit keys, 11 bits per pass; passes whose digit is the same for every
-// key are skipped (typically the sign and exponent ones).
-void RadixSort(std::vector<double>* values) {
+// Places the order statistics x[order[j]] (order ascending) of doubles
+// without NaN where a full sort would put them, by distribution: a bucket
+// index that is monotone in the value, floor((x - lo) / width) clamped to
+// [0, buckets), with lo and width from the minimum and maximum of an evenly
+// strided sample; one counting pass, one scatter pass, then only the
+// buckets that hold a wanted order statistic are sorted. Values outside
+// the sample's range go to the end buckets. Expected O(n) for any number of
+// order statistics; a bucket of equal values (quantised data) is not
+// sorted, a bucket of many distinct values costs its own sort.
+// Returns false (x untouched) when the sample has no spread.
+bool DistributeOrderStatistics(std::vector<double>* values,
+                               const std::vector<std::size_t>& order) {
   std::vector<double>& x = *values;
   const std::size_t n = x.size();
-  std::vector<std::uint64_t> key(n), tmp(n);
+  const std::size_t stride = std::max<std::size_t>(1, n / 512);
+  double lo = x[0], hi = x[0];
+  for (std::size_t i = 0; i < n; i += stride) {
+    lo = std::min(lo, x[i]);
+    hi = std::max(hi, x[i]);
+  }
+  if (!(hi > lo) || !std::isfinite(hi - lo)) return false;
+  const std::size_t buckets = std::clamp<std::size_t>(n / 4, 64, 1 << 16);
+  const double last = static_cast<double>(buckets - 1);
+  const double scale = buckets / (hi - lo);
+  std::vector<std::uint32_t> bucket(n);
+  std::vector<std::size_t> start(buckets + 1, 0);
   for (std::size_t i = 0; i < n; ++i) {
-    std::uint64_t u;
-    std::memcpy(&u, &x[i], sizeof u);
-    // Negative: flip all bits; positive: flip the sign bit.
-    key[i] = (u >> 63) ? ~u : (u | (std::uint64_t{1} << 63));
+    const double t = std::clamp((x[i] - lo) * scale, 0.0, last);
+    bucket[i] = static_cast<std::uint32_t>(t);
+    ++start[bucket[i] + 1];
   }
-  constexpr int kBits = 11;
-  constexpr std::size_t kBuckets = std::size_t{1} << kBits;
-  std::vector<std::size_t> count(kBuckets);
-  for (int shift = 0; shift < 64; shift += kBits) {
-    std::fill(count.begin(), count.end(), 0);
-    for (std::uint64_t k : key) ++count[(k >> shift) & (kBuckets - 1)];
-    if (count[(key[0] >> shift) & (kBuckets - 1)] == n) continue;
-    std::size_t total = 0;
-    for (std::size_t& c : count) {
-      const std::size_t here = c;
-      c = total;
-      total += here;
-    }
-    for (std::uint64_t k : key) tmp[count[(k >> shift) & (kBuckets - 1)]++] = k;
-    key.swap(tmp);
+  for (std::size_t b = 0; b < buckets; ++b) start[b + 1] += start[b];
+  std::vector<double> placed(n);
+  {
+    std::vector<std::size_t> next(start.begin(), start.end() - 1);
+    for (std::size_t i = 0; i < n; ++i) placed[next[bucket[i]]++] = x[i];
   }
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::uint64_t k = key[i];
-    const std::uint64_t u = (k >> 63) ? (k & ~(std::uint64_t{1} << 63)) : ~k;
-    std::memcpy(&x[i], &u, sizeof u);
+  std::size_t sorted_up_to = 0;  // buckets [.., sorted_up_to) are done
+  for (std::size_t k : order) {
+    const std::size_t b = static_cast<std::size_t>(
+        std::upper_bound(start.begin(), start.end(), k) - start.begin() - 1);
+    if (b + 1 <= sorted_up_to) continue;
+    const auto first = placed.begin() + start[b];
+    const auto end = placed.begin() + start[b + 1];
+    const auto [min, max] = std::minmax_element(first, end);
+    if (*min != *max) std::sort(first, end);  // ties (quantised data) are
+    sorted_up_to = b + 1;                     // sorted already
   }
+  x.swap(placed);
+  return true;
 }
 
 }  // namespace
@@ -185,10 +201,9 @@ std::vector<double> SelectQuantiles(std::vector<double>* x,
   order.erase(std::unique(order.begin(), order.end()), order.end());
   const bool any_nan =
       std::any_of(e.begin(), e.end(), [](double v) { return std::isnan(v); });
-  if (order.size() > 16 && e.size() > 4096 && !any_nan) {
-    // Many order statistics of a large set: a radix sort is cheaper than
-    // O(n log k) selection.
-    RadixSort(&e);
+  if (e.size() > 4096 && !any_nan && DistributeOrderStatistics(&e, order)) {
+    // Many order statistics of a large set: distributing into buckets is
+    // cheaper than O(n log k) selection.
     order.clear();
   }
   struct Range {

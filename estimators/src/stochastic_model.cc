@@ -5,6 +5,7 @@
 #include <set>
 #include <stdexcept>
 
+#include "frictiond/estimators/logistic_sums.h"
 #include "frictiond/estimators/robust_covariance.h"
 #include "frictiond/estimators/stats.h"
 
@@ -192,43 +193,22 @@ SlipLikelihoodFit FitSlipLikelihood(const std::vector<double>& ratio,
   }
   // IRLS on the standardised ratio z = (r - mean)/sd: eta = a + b z.
   // A tiny ridge on b keeps separable data finite.
-  const Eigen::ArrayXd z = (Eigen::Map<const Eigen::ArrayXd>(
-                                ratio.data(), static_cast<Eigen::Index>(n)) -
-                            mean_r) /
-                           sd_r;
-  Eigen::ArrayXd y(static_cast<Eigen::Index>(n));
-  for (std::size_t i = 0; i < n; ++i) y(i) = slip[i] ? 1.0 : 0.0;
   Eigen::Vector2d w(std::log(double(n_slip) / (n - n_slip)), 0.0);
   Eigen::Matrix2d H;
-  // Newton steps (vectorised: Eigen's exp works on whole packets) until the
-  // step is below `tol`. Convergence is quadratic near the optimum, so after
-  // a step of size tol the remaining error is of order tol^2.
-  auto newton = [&w, &H](const Eigen::ArrayXd& zv,
-                         const Eigen::ArrayXd& yv,
-                         double tol,
-                         int max_iterations) {
-    const double ridge = 1e-6 * zv.size();
-    // Blocks small enough to stay in L1, on the stack (no n-sized
-    // temporaries per iteration).
-    constexpr Eigen::Index kBlock = 512;
-    using BlockArray = Eigen::Array<double, Eigen::Dynamic, 1, 0, kBlock, 1>;
+  // Newton steps until the step is below `tol`. Convergence is quadratic
+  // near the optimum, so after a step of size tol the remaining error is of
+  // order tol^2. Each step is one pass of CalcLogisticSums over the pairs.
+  auto newton = [&w, &H, mean_r, sd_r](const double* r,
+                                       const int* y,
+                                       std::size_t m,
+                                       double tol,
+                                       int max_iterations) {
+    const double ridge = 1e-6 * m;
     for (int it = 0; it < max_iterations; ++it) {
-      Eigen::Vector2d grad = Eigen::Vector2d::Zero();
-      double h00 = 0.0, h01 = 0.0, h11 = 0.0;
-      for (Eigen::Index b0 = 0; b0 < zv.size(); b0 += kBlock) {
-        const Eigen::Index len = std::min(kBlock, zv.size() - b0);
-        const auto zb = zv.segment(b0, len);
-        const BlockArray pi = (1.0 + (-(w(0) + w(1) * zb)).exp()).inverse();
-        const BlockArray wi = (pi * (1.0 - pi)).max(1e-12);
-        const BlockArray ri = yv.segment(b0, len) - pi;
-        grad(0) += ri.sum();
-        grad(1) += (ri * zb).sum();
-        h00 += wi.sum();
-        h01 += (wi * zb).sum();
-        h11 += (wi * zb * zb).sum();
-      }
-      grad(1) -= ridge * w(1);
-      H << h00, h01, h01, h11 + ridge;
+      const LogisticSums s =
+          CalcLogisticSums(r, y, m, {w(0), w(1), mean_r, 1.0 / sd_r});
+      const Eigen::Vector2d grad(s.g0, s.g1 - ridge * w(1));
+      H << s.h00, s.h01, s.h01, s.h11 + ridge;
       const Eigen::Vector2d step = H.ldlt().solve(grad);
       w += step;
       if (step.norm() < tol) break;
@@ -239,17 +219,19 @@ SlipLikelihoodFit FitSlipLikelihood(const std::vector<double>& ratio,
   constexpr std::size_t kWarmSamples = 4096;
   if (n >= 4 * kWarmSamples) {
     const std::size_t stride = n / kWarmSamples;
-    const Eigen::Index m = static_cast<Eigen::Index>(n / stride);
-    const Eigen::ArrayXd zs =
-        Eigen::Map<const Eigen::ArrayXd, 0, Eigen::InnerStride<>>(
-            z.data(), m, Eigen::InnerStride<>(stride));
-    const Eigen::ArrayXd ys =
-        Eigen::Map<const Eigen::ArrayXd, 0, Eigen::InnerStride<>>(
-            y.data(), m, Eigen::InnerStride<>(stride));
-    if (ys.sum() > 0 && ys.sum() < m) newton(zs, ys, 1e-3, 100);
+    std::vector<double> rs;
+    std::vector<int> ys;
+    int ys_slip = 0;
+    for (std::size_t i = 0; i + stride <= n; i += stride) {
+      rs.push_back(ratio[i]);
+      ys.push_back(slip[i] ? 1 : 0);
+      ys_slip += ys.back();
+    }
+    if (ys_slip > 0 && ys_slip < static_cast<int>(ys.size()))
+      newton(rs.data(), ys.data(), rs.size(), 1e-3, 100);
     if (!w.allFinite()) w << std::log(double(n_slip) / (n - n_slip)), 0.0;
   }
-  newton(z, y, 1e-5, 100);  // error ~1e-10
+  newton(ratio.data(), slip.data(), n, 1e-5, 100);  // error ~1e-10
   // Back to L = 1/(1+exp(-c1 (r - c2))).
   fit.c1 = w(1) / sd_r;
   fit.c2 = std::fabs(w(1)) > 0 ? mean_r - w(0) * sd_r / w(1) : mean_r;

@@ -202,5 +202,48 @@ TEST(SelectQuantiles, EqualsSortedQuantile) {
   }
 }
 
+// The many-level path (distribution into buckets from a sample's range)
+// with values the sample does not see: heavy tails, infinities, a spike of
+// equal values, and a sample without spread.
+TEST(SelectQuantiles, ManyLevelsWithOutliersAndTies) {
+  std::mt19937_64 rng(12);
+  std::cauchy_distribution<double> heavy(0.0, 1.0);
+  std::normal_distribution<double> fine(0.0, 1.0);
+  std::vector<double> levels;
+  for (int k = 0; k <= 100; ++k) levels.push_back(k / 100.0);
+  const int n = 30011;
+  for (int kind = 0; kind < 4; ++kind) {
+    std::vector<double> x(n);
+    for (int i = 0; i < n; ++i) {
+      switch (kind) {
+        case 0:
+          x[i] = heavy(rng);
+          break;
+        case 1:  // infinities off the sample's stride
+          x[i] = i % 58 != 0 && i % 997 == 1 ? (i % 2 ? INFINITY : -INFINITY)
+                                             : fine(rng);
+          break;
+        case 2:  // 60 % one value
+          x[i] = i % 5 < 3 ? 0.25 : fine(rng);
+          break;
+        default:  // every sampled value equal, the rest spread
+          x[i] = i % 58 == 0 ? 1.0 : fine(rng);
+          break;
+      }
+    }
+    std::vector<double> sorted = x;
+    std::sort(sorted.begin(), sorted.end());
+    const std::vector<double> q = SelectQuantiles(&x, levels);
+    for (std::size_t j = 0; j < levels.size(); ++j) {
+      const double want = SortedQuantile(sorted, levels[j]);
+      if (std::isnan(want)) {  // -inf + 0 * inf at p = 0 and 1
+        EXPECT_TRUE(std::isnan(q[j])) << "kind " << kind << " p " << levels[j];
+      } else {
+        EXPECT_EQ(q[j], want) << "kind " << kind << " p " << levels[j];
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace frictiond
