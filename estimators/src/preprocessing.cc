@@ -43,6 +43,11 @@ bool SlipLabelOptions::IsValid(std::string* why) const {
 
 std::vector<double> MedianFilter(const std::vector<double>& x, int kernel) {
   if (kernel <= 1 || x.size() < 3) return x;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    if (std::isnan(x[i]))
+      throw std::invalid_argument("MedianFilter: x[" + std::to_string(i) +
+                                  "] is NaN");
+  }
   if (kernel % 2 == 0) ++kernel;
   const int half = kernel / 2;
   const int n = static_cast<int>(x.size());
@@ -58,11 +63,31 @@ std::vector<double> MedianFilter(const std::vector<double>& x, int kernel) {
   auto erase = [&win](double v) {
     win.erase(std::lower_bound(win.begin(), win.end(), v));
   };
+  // Once the window is full, one sample leaves as one enters: the entering
+  // one takes the leaving one's slot and moves to its place in one pass.
+  auto replace = [&win](double leaving, double entering) {
+    auto it = std::lower_bound(win.begin(), win.end(), leaving);
+    if (entering > leaving) {
+      for (auto next = it + 1; next != win.end() && *next < entering; ++next)
+        *it++ = *next;
+    } else {
+      while (it != win.begin() && *(it - 1) > entering) {
+        *it = *(it - 1);
+        --it;
+      }
+    }
+    *it = entering;
+  };
   for (int i = 0; i < n; ++i) {
     const int want_lo = std::max(0, i - half);
     const int want_hi = std::min(n - 1, i + half);
-    while (hi < want_hi) insert(x[++hi]);
-    while (lo < want_lo) erase(x[lo++]);
+    if (hi < want_hi && lo < want_lo && want_hi - hi == 1 &&
+        want_lo - lo == 1) {
+      replace(x[lo++], x[++hi]);
+    } else {
+      while (hi < want_hi) insert(x[++hi]);
+      while (lo < want_lo) erase(x[lo++]);
+    }
     out[i] = win[win.size() / 2];
   }
   return out;
@@ -83,31 +108,34 @@ double CalcMedianDt(const std::vector<double>& t_s) {
 
 namespace {
 
-// True where the step from i-1 to i is a gap (unrecorded rest).
-std::vector<bool> CalcGaps(const std::vector<double>& t_s, double gap_factor) {
+// True where the step from i-1 to i is a gap (unrecorded rest); dt is the
+// median sampling interval (CalcMedianDt).
+std::vector<bool> CalcGaps(const std::vector<double>& t_s,
+                           double dt,
+                           double gap_factor) {
   std::vector<bool> gap(t_s.size(), false);
-  const double dt = CalcMedianDt(t_s);
   if (dt <= 0) return gap;
   for (std::size_t i = 1; i < t_s.size(); ++i)
     gap[i] = (t_s[i] - t_s[i - 1]) > gap_factor * dt;
   return gap;
 }
 
-}  // namespace
+std::vector<bool> CalcGaps(const std::vector<double>& t_s, double gap_factor) {
+  return CalcGaps(t_s, CalcMedianDt(t_s), gap_factor);
+}
 
+// LabelSlip with the median interval and the gaps already known.
 std::vector<int> LabelSlip(const StrokeData& data,
-                           const SlipLabelOptions& options) {
-  std::string why;
-  if (!options.IsValid(&why)) throw std::invalid_argument(why);
+                           const SlipLabelOptions& options,
+                           double dt,
+                           const std::vector<bool>& gap) {
   const std::size_t n = data.size();
   std::vector<int> slip(n, 0);
   if (n == 0) return slip;
-  const double dt = CalcMedianDt(data.t_s);
   int kernel = 1;
   if (dt > 0 && options.median_window_s > 0)
     kernel = static_cast<int>(std::lround(options.median_window_s / dt));
   const std::vector<double> v = MedianFilter(data.v_mm_s, kernel);
-  const std::vector<bool> gap = CalcGaps(data.t_s, options.gap_factor);
   // Episodes: maximal runs with v > floor, not crossing gaps (paper II-C).
   std::size_t i = 0;
   while (i < n) {
@@ -129,12 +157,11 @@ std::vector<int> LabelSlip(const StrokeData& data,
   return slip;
 }
 
-std::vector<int> SegmentStrokes(const StrokeData& data,
-                                const std::vector<int>& slip,
-                                double gap_factor) {
-  const std::size_t n = data.size();
+// SegmentStrokes with the gaps already known.
+std::vector<int> SegmentStrokes(const std::vector<int>& slip,
+                                const std::vector<bool>& gap) {
+  const std::size_t n = slip.size();
   std::vector<int> stroke(n, 0);
-  const std::vector<bool> gap = CalcGaps(data.t_s, gap_factor);
   int id = 0;
   bool seen_slip = false;  // the current stroke already had a slip episode
   for (std::size_t i = 0; i < n; ++i) {
@@ -155,10 +182,38 @@ std::vector<int> SegmentStrokes(const StrokeData& data,
   return stroke;
 }
 
+}  // namespace
+
+std::vector<int> LabelSlip(const StrokeData& data,
+                           const SlipLabelOptions& options) {
+  std::string why;
+  if (!options.IsValid(&why)) throw std::invalid_argument(why);
+  const double dt = CalcMedianDt(data.t_s);
+  return LabelSlip(
+      data, options, dt, CalcGaps(data.t_s, dt, options.gap_factor));
+}
+
+std::vector<int> SegmentStrokes(const StrokeData& data,
+                                const std::vector<int>& slip,
+                                double gap_factor) {
+  if (slip.size() != data.size())
+    throw std::invalid_argument("slip has " + std::to_string(slip.size()) +
+                                " entries for " + std::to_string(data.size()) +
+                                " samples");
+  return SegmentStrokes(slip, CalcGaps(data.t_s, gap_factor));
+}
+
 void EnsureLabels(StrokeData* data, const SlipLabelOptions& options) {
-  if (data->slip.size() != data->size()) data->slip = LabelSlip(*data, options);
-  if (data->stroke.size() != data->size())
-    data->stroke = SegmentStrokes(*data, data->slip, options.gap_factor);
+  const bool need_slip = data->slip.size() != data->size();
+  const bool need_stroke = data->stroke.size() != data->size();
+  if (!need_slip && !need_stroke) return;
+  std::string why;
+  if (!options.IsValid(&why)) throw std::invalid_argument(why);
+  // One median interval and one gap vector for both steps.
+  const double dt = CalcMedianDt(data->t_s);
+  const std::vector<bool> gap = CalcGaps(data->t_s, dt, options.gap_factor);
+  if (need_slip) data->slip = LabelSlip(*data, options, dt, gap);
+  if (need_stroke) data->stroke = SegmentStrokes(data->slip, gap);
 }
 
 std::vector<bool> CalcFitMask(const StrokeData& data,

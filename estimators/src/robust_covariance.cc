@@ -20,12 +20,18 @@ Eigen::MatrixXd CalcClusterRobustCovariance(
   Eigen::MatrixXd P = Eigen::MatrixXd::Zero(k, k);
   if (k == 0 || n <= k) return P;
   // Score sum X_g' u_g per cluster.
+  // Rows come in runs of one cluster (a stroke's samples): one product per
+  // run, one map lookup per run.
   std::map<int, Eigen::VectorXd> scores;
-  for (Eigen::Index i = 0; i < n; ++i) {
-    auto it = scores.find(cluster[i]);
+  for (Eigen::Index start = 0; start < n;) {
+    Eigen::Index end = start + 1;
+    while (end < n && cluster[end] == cluster[start]) ++end;
+    auto it = scores.find(cluster[start]);
     if (it == scores.end())
-      it = scores.emplace(cluster[i], Eigen::VectorXd::Zero(k)).first;
-    it->second.noalias() += X.row(i).transpose() * residuals(i);
+      it = scores.emplace(cluster[start], Eigen::VectorXd::Zero(k)).first;
+    it->second.noalias() += X.middleRows(start, end - start).transpose() *
+                            residuals.segment(start, end - start);
+    start = end;
   }
   const double g = static_cast<double>(scores.size());
   if (g < 2) return P;

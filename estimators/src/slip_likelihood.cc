@@ -145,26 +145,45 @@ ConditionalSlipLikelihood FitConditionalSlipLikelihood(
     windows[w].fn_hi_n = windows[w].fn_center_n + half;
   }
   // Each sample goes straight to the few windows that hold it (lo <= Fn <
-  // hi), found from its Fn on the centre grid: no sort by Fn.
-  std::vector<std::vector<double>> r(n_windows);
-  std::vector<std::vector<int>> s(n_windows);
-  for (std::size_t i = 0; i < fn_n.size(); ++i) {
-    if (!std::isfinite(fn_n[i]) || !std::isfinite(ratio[i])) continue;
+  // hi), found from its Fn on the centre grid: no sort by Fn. Two passes:
+  // count per window, then fill one flat array per quantity, window after
+  // window.
+  auto for_each_window = [&](std::size_t i, auto&& visit) {
     const double x = fn_n[i];
-    const double w_lo = std::ceil((x - half - first) / step) - 1;
-    const double w_hi = std::floor((x + half - first) / step) + 1;
-    const int a = static_cast<int>(std::max(0.0, w_lo));
-    const int b = static_cast<int>(std::min(n_windows - 1.0, w_hi));
+    if (!std::isfinite(x) || !std::isfinite(ratio[i])) return;
+    // Candidate windows: those whose [lo, hi) can hold x, plus one on
+    // each side against rounding; the exact test decides.
+    const double lo_cell = std::clamp(
+        (x - half - first) / step, -2.0, static_cast<double>(n_windows) + 2);
+    const double hi_cell = std::clamp(
+        (x + half - first) / step, -2.0, static_cast<double>(n_windows) + 2);
+    const int a = std::max(0, static_cast<int>(lo_cell + 2.0) - 2);
+    const int b = std::min(n_windows - 1, static_cast<int>(hi_cell + 2.0) - 1);
     for (int w = a; w <= b; ++w) {
       if (x < windows[w].fn_lo_n || !(x < windows[w].fn_hi_n)) continue;
-      r[w].push_back(ratio[i]);
-      s[w].push_back(slip[i] != 0);
-      windows[w].slipping += slip[i] != 0;
+      visit(w);
+    }
+  };
+  std::vector<std::size_t> offset(n_windows + 1, 0);
+  for (std::size_t i = 0; i < fn_n.size(); ++i)
+    for_each_window(i, [&](int w) { ++offset[w + 1]; });
+  for (int w = 0; w < n_windows; ++w) offset[w + 1] += offset[w];
+  std::vector<double> r(offset[n_windows]);
+  std::vector<int> s(offset[n_windows]);
+  {
+    std::vector<std::size_t> next(offset.begin(), offset.end() - 1);
+    for (std::size_t i = 0; i < fn_n.size(); ++i) {
+      const int is_slip = slip[i] != 0;
+      for_each_window(i, [&](int w) {
+        r[next[w]] = ratio[i];
+        s[next[w]++] = is_slip;
+        windows[w].slipping += is_slip;
+      });
     }
   }
   for (int w = 0; w < n_windows; ++w) {
     SlipWindowFit& win = windows[w];
-    win.samples = static_cast<int>(r[w].size());
+    win.samples = static_cast<int>(offset[w + 1] - offset[w]);
     const int stick = win.samples - win.slipping;
     if (win.samples < options.min_samples) {
       win.fit.why = std::to_string(win.samples) + " samples (fewer than " +
@@ -175,8 +194,11 @@ ConditionalSlipLikelihood FitConditionalSlipLikelihood(
                     std::to_string(stick) + " stick samples (each must be >= " +
                     std::to_string(options.min_each_class) + ")";
     } else {
-      win.fit = FitSlipLikelihood(
-          r[w], s[w], options.never_level, options.always_level);
+      win.fit = FitSlipLikelihood(r.data() + offset[w],
+                                  s.data() + offset[w],
+                                  static_cast<std::size_t>(win.samples),
+                                  options.never_level,
+                                  options.always_level);
     }
     if (win.fit.valid) {
       out.knot_fn_n.push_back(win.fn_center_n);

@@ -13,17 +13,90 @@ bool SpanRect::IsValid() const {
          fn_max_n > fn_min_n && v_max_mm_s > v_min_mm_s;
 }
 
+namespace {
+
+using Point = std::pair<double, double>;
+
+double Cross(const Point& o, const Point& a, const Point& b) {
+  return (a.first - o.first) * (b.second - o.second) -
+         (a.second - o.second) * (b.first - o.first);
+}
+
+// Akl-Toussaint: the points extreme in x, y, x + y and x - y are on the
+// hull; in counter-clockwise order they span a convex polygon, and a point
+// strictly inside it is no hull vertex. Dropping those before the sort
+// leaves the hull unchanged and, for spread-out data, few points to sort.
+void DropInteriorPoints(std::vector<Point>* points) {
+  std::vector<Point>& p = *points;
+  if (p.size() < 64) return;
+  std::size_t e[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  // Directions in counter-clockwise order: min x, min x+y, min y,
+  // max x-y, max x, max x+y, max y, min x-y.
+  auto key = [](const Point& q, int d) {
+    switch (d) {
+      case 0:
+        return -q.first;
+      case 1:
+        return -(q.first + q.second);
+      case 2:
+        return -q.second;
+      case 3:
+        return q.first - q.second;
+      case 4:
+        return q.first;
+      case 5:
+        return q.first + q.second;
+      case 6:
+        return q.second;
+      default:
+        return q.second - q.first;
+    }
+  };
+  for (std::size_t i = 1; i < p.size(); ++i) {
+    for (int d = 0; d < 8; ++d) {
+      if (key(p[i], d) > key(p[e[d]], d)) e[d] = i;
+    }
+  }
+  std::vector<Point> poly;
+  for (int d = 0; d < 8; ++d) {
+    if (poly.empty() || poly.back() != p[e[d]]) poly.push_back(p[e[d]]);
+  }
+  while (poly.size() > 1 && poly.back() == poly.front()) poly.pop_back();
+  if (poly.size() < 3) return;
+  auto inside = [&poly](const Point& q) {
+    for (std::size_t j = 0; j < poly.size(); ++j) {
+      if (!(Cross(poly[j], poly[(j + 1) % poly.size()], q) > 0)) return false;
+    }
+    return true;
+  };
+  p.erase(std::remove_if(p.begin(), p.end(), inside), p.end());
+}
+
+}  // namespace
+
 std::vector<std::pair<double, double>> CalcConvexHull(
     std::vector<std::pair<double, double>> p) {
+  if (!p.empty()) {
+    // All on one vertical or horizontal line (e.g. a constant load clamped
+    // to the reference span): the hull is the segment between the ends.
+    const auto [lo, hi] = std::minmax_element(p.begin(), p.end());
+    const bool same_x = std::all_of(p.begin(), p.end(), [&](const Point& q) {
+      return q.first == p[0].first;
+    });
+    const bool same_y = std::all_of(p.begin(), p.end(), [&](const Point& q) {
+      return q.second == p[0].second;
+    });
+    if (same_x || same_y) {
+      if (*lo == *hi) return {*lo};
+      return {*lo, *hi};
+    }
+  }
+  DropInteriorPoints(&p);
   std::sort(p.begin(), p.end());
   p.erase(std::unique(p.begin(), p.end()), p.end());
   const std::size_t n = p.size();
   if (n < 3) return p;
-  using Point = std::pair<double, double>;
-  auto cross = [](const Point& o, const Point& a, const Point& b) {
-    return (a.first - o.first) * (b.second - o.second) -
-           (a.second - o.second) * (b.first - o.first);
-  };
+  const auto cross = Cross;
   // Andrew's monotone chain: lower then upper hull.
   std::vector<Point> hull(2 * n);
   std::size_t k = 0;
@@ -40,7 +113,6 @@ std::vector<std::pair<double, double>> CalcConvexHull(
 }
 
 double CalcConvexHullArea(std::vector<std::pair<double, double>> p) {
-  using Point = std::pair<double, double>;
   const std::vector<Point> hull = CalcConvexHull(std::move(p));
   if (hull.size() < 3) return 0.0;
   double twice_area = 0.0;

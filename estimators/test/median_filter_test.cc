@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <cmath>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -34,6 +35,22 @@ TEST(MedianFilter, SlidingWindowEqualsNaiveSelection) {
           << "kernel " << kernel << " n " << n;
     }
   }
+}
+
+// Distinct values (every step moves the entering sample through the
+// window) and the NaN rule.
+TEST(MedianFilter, DistinctValuesAndNan) {
+  std::mt19937 rng(43);
+  std::normal_distribution<double> speed(10.0, 4.0);
+  for (int kernel : {3, 11, 17}) {
+    std::vector<double> x(2000);
+    for (auto& v : x) v = speed(rng);
+    EXPECT_EQ(MedianFilter(x, kernel), NaiveMedian(x, kernel))
+        << "kernel " << kernel;
+  }
+  std::vector<double> x(20, 1.0);
+  x[7] = NAN;
+  EXPECT_THROW(MedianFilter(x, 5), std::invalid_argument);
 }
 
 TEST(MedianFilter, RemovesIsolatedSpikes) {

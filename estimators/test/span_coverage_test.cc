@@ -1,5 +1,8 @@
 #include "frictiond/estimators/span_coverage.h"
 
+#include <algorithm>
+#include <cmath>
+#include <random>
 #include <stdexcept>
 #include <utility>
 #include <vector>
@@ -32,6 +35,78 @@ TEST(SpanCoverage, HullPolygonDropsInteriorAndCollinearPoints) {
   EXPECT_EQ(hull, expected);
   EXPECT_EQ(CalcConvexHull({{0, 0}, {1, 1}, {2, 2}}).size(), 2u);
   EXPECT_TRUE(CalcConvexHull({}).empty());
+}
+
+// Andrew's monotone chain on all points, without the interior-point
+// filter and the one-line shortcut CalcConvexHull takes.
+std::vector<std::pair<double, double>> PlainHull(
+    std::vector<std::pair<double, double>> p) {
+  using P = std::pair<double, double>;
+  std::sort(p.begin(), p.end());
+  p.erase(std::unique(p.begin(), p.end()), p.end());
+  if (p.size() < 3) return p;
+  auto cross = [](const P& o, const P& a, const P& b) {
+    return (a.first - o.first) * (b.second - o.second) -
+           (a.second - o.second) * (b.first - o.first);
+  };
+  std::vector<P> h(2 * p.size());
+  std::size_t k = 0;
+  for (const P& q : p) {
+    while (k >= 2 && cross(h[k - 2], h[k - 1], q) <= 0) --k;
+    h[k++] = q;
+  }
+  for (std::size_t i = p.size() - 1, t = k + 1; i-- > 0;) {
+    while (k >= t && cross(h[k - 2], h[k - 1], p[i]) <= 0) --k;
+    h[k++] = p[i];
+  }
+  h.resize(k - 1);
+  return h;
+}
+
+// The same polygon as the plain algorithm for clouds of many shapes:
+// square, disk, skewed Gaussian, points clamped to a rectangle (many on its
+// edges), quantised grids, and one vertical / horizontal line.
+TEST(SpanCoverage, HullEqualsPlainMonotoneChain) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (int shape = 0; shape < 6; ++shape) {
+    for (int n : {10, 64, 65, 500, 5000}) {
+      std::vector<std::pair<double, double>> p;
+      for (int i = 0; i < n; ++i) {
+        double x = u(rng), y = u(rng);
+        switch (shape) {
+          case 1: {  // disk
+            const double a = 6.283185307179586 * x, r = std::sqrt(y);
+            x = r * std::cos(a);
+            y = r * std::sin(a);
+            break;
+          }
+          case 2:  // skewed Gaussian
+            x = g(rng);
+            y = 0.3 * x + 0.1 * g(rng);
+            break;
+          case 3:  // clamped to a rectangle
+            x = std::clamp(2.0 * g(rng), -1.0, 1.0);
+            y = std::clamp(2.0 * g(rng), -1.0, 1.0);
+            break;
+          case 4:  // quantised grid
+            x = std::floor(8 * x) / 8;
+            y = std::floor(8 * y) / 8;
+            break;
+          default:  // a vertical line (or a horizontal one for odd n)
+            if (n % 2)
+              y = 0.25;
+            else
+              x = 4.5;
+            break;
+        }
+        p.emplace_back(x, y);
+      }
+      EXPECT_EQ(CalcConvexHull(p), PlainHull(p))
+          << "shape " << shape << " n " << n;
+    }
+  }
 }
 
 TEST(SpanCoverage, FullSweepCoversEverything) {

@@ -46,7 +46,8 @@ struct SlipLabelOptions {
 };
 
 /// Median filter of `x` with an odd kernel of `kernel` samples (shrinking at
-/// the ends). kernel <= 1 returns x unchanged.
+/// the ends). kernel <= 1 returns x unchanged. Throws std::invalid_argument
+/// when x holds a NaN (it has no place in the order).
 std::vector<double> MedianFilter(const std::vector<double>& x, int kernel);
 
 /// Median of the positive sample intervals of t (0 when there are fewer

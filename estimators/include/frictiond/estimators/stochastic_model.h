@@ -25,6 +25,7 @@
 ///   /*load_n=*/3.0, /*risk=*/0.001);
 /// @endcode
 
+#include <cstddef>
 #include <map>
 #include <string>
 #include <utility>
@@ -150,6 +151,12 @@ StochasticFit FitStochasticModel(const StrokeData& data,
 /// finite.
 SlipLikelihoodFit FitSlipLikelihood(const std::vector<double>& ratio,
                                     const std::vector<int>& slip,
+                                    double never_level = 0.01,
+                                    double always_level = 0.99);
+/// The same on n pairs in plain arrays (slip: 0 = stick, else slip).
+SlipLikelihoodFit FitSlipLikelihood(const double* ratio,
+                                    const int* slip,
+                                    std::size_t n,
                                     double never_level = 0.01,
                                     double always_level = 0.99);
 
