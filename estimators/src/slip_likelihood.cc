@@ -145,41 +145,59 @@ ConditionalSlipLikelihood FitConditionalSlipLikelihood(
     windows[w].fn_hi_n = windows[w].fn_center_n + half;
   }
   // Each sample goes straight to the few windows that hold it (lo <= Fn <
-  // hi), found from its Fn on the centre grid: no sort by Fn. Two passes:
-  // count per window, then fill one flat array per quantity, window after
-  // window.
-  auto for_each_window = [&](std::size_t i, auto&& visit) {
+  // hi), found from its Fn on the centre grid: no sort by Fn. The windows
+  // holding one Fn are consecutive (both bounds rise with w), so a sample
+  // is one range [first_w, first_w + count). Pass 1 finds the ranges and
+  // counts per window (difference array), pass 2 fills one flat array per
+  // quantity, window after window.
+  const std::size_t n = fn_n.size();
+  std::vector<int> first_w(n, 0);
+  std::vector<int> count_w(n, 0);
+  std::vector<std::ptrdiff_t> diff(n_windows + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) {
     const double x = fn_n[i];
-    if (!std::isfinite(x) || !std::isfinite(ratio[i])) return;
-    // Candidate windows: those whose [lo, hi) can hold x, plus one on
-    // each side against rounding; the exact test decides.
+    if (!std::isfinite(x) || !std::isfinite(ratio[i])) continue;
+    // Candidates: the windows whose [lo, hi) can hold x, plus one on each
+    // side against rounding; the exact test decides.
     const double lo_cell = std::clamp(
         (x - half - first) / step, -2.0, static_cast<double>(n_windows) + 2);
     const double hi_cell = std::clamp(
         (x + half - first) / step, -2.0, static_cast<double>(n_windows) + 2);
     const int a = std::max(0, static_cast<int>(lo_cell + 2.0) - 2);
     const int b = std::min(n_windows - 1, static_cast<int>(hi_cell + 2.0) - 1);
+    int lo = -1, hi = -2;
     for (int w = a; w <= b; ++w) {
       if (x < windows[w].fn_lo_n || !(x < windows[w].fn_hi_n)) continue;
-      visit(w);
+      if (lo < 0) lo = w;
+      hi = w;
     }
-  };
+    if (lo < 0) continue;
+    first_w[i] = lo;
+    count_w[i] = hi - lo + 1;
+    ++diff[lo];
+    --diff[hi + 1];
+  }
   std::vector<std::size_t> offset(n_windows + 1, 0);
-  for (std::size_t i = 0; i < fn_n.size(); ++i)
-    for_each_window(i, [&](int w) { ++offset[w + 1]; });
-  for (int w = 0; w < n_windows; ++w) offset[w + 1] += offset[w];
+  std::ptrdiff_t members = 0;
+  for (int w = 0; w < n_windows; ++w) {
+    members += diff[w];
+    offset[w + 1] = offset[w] + static_cast<std::size_t>(members);
+  }
   std::vector<double> r(offset[n_windows]);
   std::vector<int> s(offset[n_windows]);
   {
     std::vector<std::size_t> next(offset.begin(), offset.end() - 1);
-    for (std::size_t i = 0; i < fn_n.size(); ++i) {
+    for (std::size_t i = 0; i < n; ++i) {
       const int is_slip = slip[i] != 0;
-      for_each_window(i, [&](int w) {
+      for (int w = first_w[i]; w < first_w[i] + count_w[i]; ++w) {
         r[next[w]] = ratio[i];
         s[next[w]++] = is_slip;
-        windows[w].slipping += is_slip;
-      });
+      }
     }
+  }
+  for (int w = 0; w < n_windows; ++w) {
+    windows[w].slipping = static_cast<int>(
+        std::count(s.begin() + offset[w], s.begin() + offset[w + 1], 1));
   }
   for (int w = 0; w < n_windows; ++w) {
     SlipWindowFit& win = windows[w];

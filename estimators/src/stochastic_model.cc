@@ -185,20 +185,24 @@ SlipLikelihoodFit FitSlipLikelihood(const double* ratio,
   fit.never_level = never_level;
   fit.always_level = always_level;
   fit.samples = static_cast<int>(n);
+  // Count, mean and variance in one pass (sums shifted by the first ratio
+  // against cancellation).
   std::size_t n_slip = 0;
-  double mean_r = 0, var_r = 0;
+  const double shift = n > 0 ? ratio[0] : 0.0;
+  double sum = 0, sum2 = 0;
   for (std::size_t i = 0; i < n; ++i) {
     n_slip += slip[i] ? 1 : 0;
-    mean_r += ratio[i];
+    const double d = ratio[i] - shift;
+    sum += d;
+    sum2 += d * d;
   }
   if (n_slip == 0 || n_slip == n) {
     fit.why = n_slip == 0 ? "no slipping samples" : "no stick samples";
     return fit;
   }
-  mean_r /= n;
-  for (std::size_t i = 0; i < n; ++i)
-    var_r += (ratio[i] - mean_r) * (ratio[i] - mean_r);
-  const double sd_r = std::sqrt(var_r / n);
+  const double mean_d = sum / n;
+  const double mean_r = shift + mean_d;
+  const double sd_r = std::sqrt(std::max(0.0, sum2 / n - mean_d * mean_d));
   if (!(sd_r > 0)) {
     fit.why = "all ratios equal";
     return fit;
@@ -226,11 +230,12 @@ SlipLikelihoodFit FitSlipLikelihood(const double* ratio,
       if (step.norm() < tol) break;
     }
   };
-  // On large sets, first converge on an evenly strided subsample: the full
-  // data then needs only the last few (quadratically converging) steps.
-  constexpr std::size_t kWarmSamples = 4096;
-  if (n >= 4 * kWarmSamples) {
-    const std::size_t stride = n / kWarmSamples;
+  // On large sets, first converge on evenly strided subsamples (512, then
+  // 4096 pairs): the full data then needs only the last two
+  // (quadratically converging) steps.
+  for (const std::size_t warm : {std::size_t{512}, std::size_t{4096}}) {
+    if (n < 4 * warm) break;
+    const std::size_t stride = n / warm;
     std::vector<double> rs;
     std::vector<int> ys;
     int ys_slip = 0;
@@ -240,7 +245,7 @@ SlipLikelihoodFit FitSlipLikelihood(const double* ratio,
       ys_slip += ys.back();
     }
     if (ys_slip > 0 && ys_slip < static_cast<int>(ys.size()))
-      newton(rs.data(), ys.data(), rs.size(), 1e-3, 100);
+      newton(rs.data(), ys.data(), rs.size(), warm < 4096 ? 1e-2 : 1e-3, 100);
     if (!w.allFinite()) w << std::log(double(n_slip) / (n - n_slip)), 0.0;
   }
   // Two passes over the full data after the warm start: a step of 1e-3
