@@ -151,6 +151,11 @@ ConditionalSlipLikelihood FitConditionalSlipLikelihood(
   // counts per window (difference array), pass 2 fills one flat array per
   // quantity, window after window.
   const std::size_t n = fn_n.size();
+  std::vector<double> win_lo(n_windows), win_hi(n_windows);
+  for (int w = 0; w < n_windows; ++w) {
+    win_lo[w] = windows[w].fn_lo_n;
+    win_hi[w] = windows[w].fn_hi_n;
+  }
   std::vector<int> first_w(n, 0);
   std::vector<int> count_w(n, 0);
   std::vector<std::ptrdiff_t> diff(n_windows + 1, 0);
@@ -165,13 +170,14 @@ ConditionalSlipLikelihood FitConditionalSlipLikelihood(
         (x + half - first) / step, -2.0, static_cast<double>(n_windows) + 2);
     const int a = std::max(0, static_cast<int>(lo_cell + 2.0) - 2);
     const int b = std::min(n_windows - 1, static_cast<int>(hi_cell + 2.0) - 1);
-    int lo = -1, hi = -2;
+    // Both bounds rise with w: the candidates ending at or below x come
+    // first, those starting at or below x form a prefix (branch-free).
+    int lo = a, hi = a - 1;
     for (int w = a; w <= b; ++w) {
-      if (x < windows[w].fn_lo_n || !(x < windows[w].fn_hi_n)) continue;
-      if (lo < 0) lo = w;
-      hi = w;
+      lo += win_hi[w] <= x;
+      hi += win_lo[w] <= x;
     }
-    if (lo < 0) continue;
+    if (lo > hi) continue;
     first_w[i] = lo;
     count_w[i] = hi - lo + 1;
     ++diff[lo];

@@ -168,6 +168,43 @@ TEST(ConditionalSlipLikelihood, ConfigurableWindowsAndUnusableWindows) {
                std::invalid_argument);
 }
 
+// Window membership is exactly lo <= Fn < hi, also for Fn on the window
+// bounds (quantised loads), for overlapping and for gapped windows, and
+// for samples outside every window.
+TEST(ConditionalSlipLikelihood, WindowMembershipIsExact) {
+  std::mt19937_64 rng(21);
+  std::uniform_int_distribution<int> tenth(0, 60);
+  std::uniform_int_distribution<int> coin(0, 1);
+  std::vector<double> fn, ratio;
+  std::vector<int> slip;
+  for (int i = 0; i < 5000; ++i) {
+    fn.push_back(tenth(rng) / 10.0);  // 0.0 .. 6.0 N in 0.1 N steps
+    ratio.push_back(0.5);
+    slip.push_back(coin(rng));
+  }
+  for (const auto& [step, window] : std::vector<std::pair<double, double>>{
+           {0.2, 0.6}, {0.3, 0.2}, {0.1, 0.1}, {0.5, 2.0}}) {
+    ConditionalSlipOptions o;
+    o.step_n = step;
+    o.window_n = window;
+    const ConditionalSlipLikelihood L =
+        FitConditionalSlipLikelihood(fn, ratio, slip, o);
+    ASSERT_FALSE(L.windows.empty());
+    for (const SlipWindowFit& w : L.windows) {
+      int samples = 0, slipping = 0;
+      for (std::size_t i = 0; i < fn.size(); ++i) {
+        if (w.fn_lo_n <= fn[i] && fn[i] < w.fn_hi_n) {
+          ++samples;
+          slipping += slip[i];
+        }
+      }
+      EXPECT_EQ(w.samples, samples)
+          << "step " << step << " window " << window << " at " << w.fn_center_n;
+      EXPECT_EQ(w.slipping, slipping) << "at " << w.fn_center_n;
+    }
+  }
+}
+
 TEST(BinnedSlipRatio, CountsPerBin) {
   const std::vector<double> r = {0.05, 0.12, 0.18, 0.31, NAN};
   const std::vector<int> s = {0, 1, 0, 1, 1};
