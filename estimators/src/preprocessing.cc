@@ -93,6 +93,36 @@ std::vector<double> MedianFilter(const std::vector<double>& x, int kernel) {
   return out;
 }
 
+std::vector<unsigned char> CalcMedianAbove(const std::vector<double>& x,
+                                           int kernel,
+                                           double threshold) {
+  const std::size_t n = x.size();
+  std::vector<unsigned char> out(n, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (std::isnan(x[i]))
+      throw std::invalid_argument("CalcMedianAbove: x[" + std::to_string(i) +
+                                  "] is NaN");
+  }
+  if (kernel <= 1 || n < 3) {
+    for (std::size_t i = 0; i < n; ++i) out[i] = x[i] > threshold;
+    return out;
+  }
+  if (kernel % 2 == 0) ++kernel;
+  const std::size_t half = static_cast<std::size_t>(kernel / 2);
+  // The upper median of a sorted window of m values (index m/2, as
+  // MedianFilter) exceeds t exactly when at least m - m/2 of them do.
+  std::vector<std::size_t> above(n + 1, 0);  // prefix counts of x > t
+  for (std::size_t i = 0; i < n; ++i)
+    above[i + 1] = above[i] + (x[i] > threshold);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t lo = i >= half ? i - half : 0;
+    const std::size_t hi = std::min(n - 1, i + half);
+    const std::size_t m = hi - lo + 1;
+    out[i] = above[hi + 1] - above[lo] >= m - m / 2;
+  }
+  return out;
+}
+
 double CalcMedianDt(const std::vector<double>& t_s) {
   std::vector<double> dt;
   dt.reserve(t_s.size());
@@ -135,23 +165,27 @@ std::vector<int> LabelSlip(const StrokeData& data,
   int kernel = 1;
   if (dt > 0 && options.median_window_s > 0)
     kernel = static_cast<int>(std::lround(options.median_window_s / dt));
-  const std::vector<double> v = MedianFilter(data.v_mm_s, kernel);
-  // Episodes: maximal runs with v > floor, not crossing gaps (paper II-C).
+  // The rule only compares the filtered speed with the two thresholds:
+  // counts replace the filter (CalcMedianAbove).
+  const std::vector<unsigned char> above_floor =
+      CalcMedianAbove(data.v_mm_s, kernel, options.floor_mm_s);
+  const std::vector<unsigned char> above_peak =
+      CalcMedianAbove(data.v_mm_s, kernel, options.peak_mm_s);
+  // Episodes: maximal runs with v > floor, not crossing gaps (paper II-C),
+  // slipping when their peak exceeds peak_mm_s.
   std::size_t i = 0;
   while (i < n) {
-    if (!(v[i] > options.floor_mm_s)) {
+    if (!above_floor[i]) {
       ++i;
       continue;
     }
     std::size_t j = i;
-    double peak = v[i];
-    while (j + 1 < n && v[j + 1] > options.floor_mm_s && !gap[j + 1]) {
+    bool peaked = above_peak[i];
+    while (j + 1 < n && above_floor[j + 1] && !gap[j + 1]) {
       ++j;
-      peak = std::max(peak, v[j]);
+      peaked = peaked || above_peak[j];
     }
-    if (peak > options.peak_mm_s) {
-      for (std::size_t k = i; k <= j; ++k) slip[k] = 1;
-    }
+    if (peaked) std::fill(slip.begin() + i, slip.begin() + j + 1, 1);
     i = j + 1;
   }
   return slip;

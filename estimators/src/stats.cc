@@ -5,6 +5,8 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <stdexcept>
+#include <string>
 
 namespace frictiond {
 
@@ -124,6 +126,34 @@ double SortedQuantile(const std::vector<double>& sorted, double p) {
 
 namespace {
 
+// Places the order statistics order[first_k, last_k) (ascending, all in
+// [lo, hi)) of e where a sort would put them: recursive multiple selection,
+// the middle one first, then those below it in the left part and those
+// above in the right part (O(m log k) for k order statistics of m values).
+void SelectMany(std::vector<double>* values,
+                std::size_t lo,
+                std::size_t hi,
+                const std::vector<std::size_t>& order,
+                std::size_t first_k,
+                std::size_t last_k) {
+  std::vector<double>& e = *values;
+  struct Range {
+    std::size_t lo, hi;           // elements [lo, hi)
+    std::size_t first_k, last_k;  // order statistics order[first_k, last_k)
+  };
+  std::vector<Range> todo = {{lo, hi, first_k, last_k}};
+  while (!todo.empty()) {
+    const Range r = todo.back();
+    todo.pop_back();
+    if (r.first_k >= r.last_k || r.hi - r.lo <= 1) continue;
+    const std::size_t mid = r.first_k + (r.last_k - r.first_k) / 2;
+    const std::size_t k = order[mid];
+    std::nth_element(e.begin() + r.lo, e.begin() + k, e.begin() + r.hi);
+    todo.push_back({r.lo, k, r.first_k, mid});
+    todo.push_back({k + 1, r.hi, mid + 1, r.last_k});
+  }
+}
+
 // Places the order statistics x[order[j]] (order ascending) of doubles
 // without NaN where a full sort would put them, by distribution: a bucket
 // index that is monotone in the value, floor((x - lo) / width) clamped to
@@ -161,16 +191,26 @@ bool DistributeOrderStatistics(std::vector<double>* values,
     std::vector<std::size_t> next(start.begin(), start.end() - 1);
     for (std::size_t i = 0; i < n; ++i) placed[next[bucket[i]]++] = x[i];
   }
-  std::size_t sorted_up_to = 0;  // buckets [.., sorted_up_to) are done
-  for (std::size_t k : order) {
+  // Each bucket holding wanted order statistics: nothing to do when its
+  // values are all equal (quantised data), a sort when it is small,
+  // multiple selection when it is large (data concentrated in one place).
+  for (std::size_t j = 0; j < order.size();) {
     const std::size_t b = static_cast<std::size_t>(
-        std::upper_bound(start.begin(), start.end(), k) - start.begin() - 1);
-    if (b + 1 <= sorted_up_to) continue;
+        std::upper_bound(start.begin(), start.end(), order[j]) - start.begin() -
+        1);
+    std::size_t j_end = j + 1;
+    while (j_end < order.size() && order[j_end] < start[b + 1]) ++j_end;
     const auto first = placed.begin() + start[b];
     const auto end = placed.begin() + start[b + 1];
     const auto [min, max] = std::minmax_element(first, end);
-    if (*min != *max) std::sort(first, end);  // ties (quantised data) are
-    sorted_up_to = b + 1;                     // sorted already
+    if (*min != *max) {
+      if (end - first <= 256) {
+        std::sort(first, end);
+      } else {
+        SelectMany(&placed, start[b], start[b + 1], order, j, j_end);
+      }
+    }
+    j = j_end;
   }
   x.swap(placed);
   return true;
@@ -186,11 +226,10 @@ std::vector<double> SelectQuantiles(std::vector<double>* x,
     out.assign(levels.size(), std::numeric_limits<double>::quiet_NaN());
     return out;
   }
-  // The order statistics the quantiles interpolate between, placed by
-  // recursive multiple selection: select the middle one, then the ones
-  // below it in the left part and the ones above in the right part
-  // (O(n log k) for k order statistics, where one nth_element per statistic
-  // on the remaining tail would be O(n k)).
+  // The order statistics the quantiles interpolate between: distributed
+  // into buckets on large sets (expected O(n)), else placed by recursive
+  // multiple selection (O(n log k); one nth_element per statistic on the
+  // remaining tail would be O(n k)).
   std::vector<std::size_t> order;
   for (double p : levels) {
     const double h = std::clamp(p, 0.0, 1.0) * (e.size() - 1);
@@ -201,26 +240,8 @@ std::vector<double> SelectQuantiles(std::vector<double>* x,
   order.erase(std::unique(order.begin(), order.end()), order.end());
   const bool any_nan =
       std::any_of(e.begin(), e.end(), [](double v) { return std::isnan(v); });
-  if (e.size() > 4096 && !any_nan && DistributeOrderStatistics(&e, order)) {
-    // Many order statistics of a large set: distributing into buckets is
-    // cheaper than O(n log k) selection.
-    order.clear();
-  }
-  struct Range {
-    std::size_t lo, hi;           // elements [lo, hi)
-    std::size_t first_k, last_k;  // order statistics order[first_k, last_k)
-  };
-  std::vector<Range> todo = {{0, e.size(), 0, order.size()}};
-  while (!todo.empty()) {
-    const Range r = todo.back();
-    todo.pop_back();
-    if (r.first_k >= r.last_k || r.hi - r.lo <= 1) continue;
-    const std::size_t mid = r.first_k + (r.last_k - r.first_k) / 2;
-    const std::size_t k = order[mid];
-    std::nth_element(e.begin() + r.lo, e.begin() + k, e.begin() + r.hi);
-    todo.push_back({r.lo, k, r.first_k, mid});
-    todo.push_back({k + 1, r.hi, mid + 1, r.last_k});
-  }
+  if (!(e.size() > 4096 && !any_nan && DistributeOrderStatistics(&e, order)))
+    SelectMany(&e, 0, e.size(), order, 0, order.size());
   for (double p : levels) {
     const double h = std::clamp(p, 0.0, 1.0) * (e.size() - 1);
     const std::size_t a = static_cast<std::size_t>(std::floor(h));

@@ -53,6 +53,29 @@ TEST(MedianFilter, DistinctValuesAndNan) {
   EXPECT_THROW(MedianFilter(x, 5), std::invalid_argument);
 }
 
+// CalcMedianAbove is MedianFilter followed by "> threshold", also for
+// values equal to the threshold, even kernels, shrinking ends and tiny
+// inputs.
+TEST(MedianFilter, MedianAboveEqualsFilterThenThreshold) {
+  std::mt19937 rng(44);
+  std::uniform_int_distribution<int> level(0, 6);
+  for (int kernel : {0, 1, 2, 3, 4, 11, 24, 101}) {
+    for (std::size_t n : {0u, 1u, 2u, 3u, 10u, 57u, 3000u}) {
+      std::vector<double> x(n);
+      for (auto& v : x) v = level(rng) * 0.25;
+      const std::vector<double> f = MedianFilter(x, kernel);
+      for (double t : {-1.0, 0.5, 0.6, 1.0, 2.0}) {
+        const std::vector<unsigned char> above = CalcMedianAbove(x, kernel, t);
+        ASSERT_EQ(above.size(), n);
+        for (std::size_t i = 0; i < n; ++i)
+          ASSERT_EQ(above[i] != 0, f[i] > t)
+              << "kernel " << kernel << " n " << n << " t " << t << " i " << i;
+      }
+    }
+  }
+  EXPECT_THROW(CalcMedianAbove({1.0, NAN, 2.0}, 3, 0.5), std::invalid_argument);
+}
+
 TEST(MedianFilter, RemovesIsolatedSpikes) {
   std::vector<double> v(50, 20.0);
   v[10] = 500.0;

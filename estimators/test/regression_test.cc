@@ -204,7 +204,7 @@ TEST(SelectQuantiles, EqualsSortedQuantile) {
 
 // The many-level path (distribution into buckets from a sample's range)
 // with values the sample does not see: heavy tails, infinities, a spike of
-// equal values, and a sample without spread.
+// equal values, a sample without spread, and most values in one bucket.
 TEST(SelectQuantiles, ManyLevelsWithOutliersAndTies) {
   std::mt19937_64 rng(12);
   std::cauchy_distribution<double> heavy(0.0, 1.0);
@@ -212,7 +212,7 @@ TEST(SelectQuantiles, ManyLevelsWithOutliersAndTies) {
   std::vector<double> levels;
   for (int k = 0; k <= 100; ++k) levels.push_back(k / 100.0);
   const int n = 30011;
-  for (int kind = 0; kind < 4; ++kind) {
+  for (int kind = 0; kind < 5; ++kind) {
     std::vector<double> x(n);
     for (int i = 0; i < n; ++i) {
       switch (kind) {
@@ -226,8 +226,11 @@ TEST(SelectQuantiles, ManyLevelsWithOutliersAndTies) {
         case 2:  // 60 % one value
           x[i] = i % 5 < 3 ? 0.25 : fine(rng);
           break;
-        default:  // every sampled value equal, the rest spread
+        case 3:  // every sampled value equal, the rest spread
           x[i] = i % 58 == 0 ? 1.0 : fine(rng);
+          break;
+        default:  // distinct values packed into one bucket by outliers
+          x[i] = i % 100 == 0 ? 1e3 * fine(rng) : 1e-6 * fine(rng);
           break;
       }
     }

@@ -50,6 +50,14 @@ struct SlipLabelOptions {
 /// when x holds a NaN (it has no place in the order).
 std::vector<double> MedianFilter(const std::vector<double>& x, int kernel);
 
+/// For each sample, whether MedianFilter(x, kernel) exceeds `threshold`
+/// there (1) or not (0), computed from counts of samples above the
+/// threshold in each window (O(n), no sorting). Throws
+/// std::invalid_argument when x holds a NaN.
+std::vector<unsigned char> CalcMedianAbove(const std::vector<double>& x,
+                                           int kernel,
+                                           double threshold);
+
 /// Median of the positive sample intervals of t (0 when there are fewer
 /// than two samples).
 double CalcMedianDt(const std::vector<double>& t_s);
