@@ -36,28 +36,36 @@ LogisticSums SumsBaseline(const double* r,
 }
 
 #if defined(__GNUC__) && defined(__x86_64__)
-// GCC vector extensions: 4 doubles, compiled for AVX2 + FMA inside the
-// target function below (nothing here is passed by value across a call, so
-// the ABI of 32-byte vectors does not matter).
-typedef double V4d __attribute__((vector_size(32)));
-typedef long long V4l __attribute__((vector_size(32)));
-typedef int V4i __attribute__((vector_size(16)));
+// GCC vector extensions: W doubles per vector, compiled for AVX2 + FMA
+// (W = 4) or AVX-512 (W = 8) inside the target functions below. Nothing
+// here is passed by value across a call, so the ABI of wide vectors does
+// not matter.
+template <int W>
+struct Simd {
+  typedef double D __attribute__((vector_size(8 * W)));
+  typedef long long L __attribute__((vector_size(8 * W)));
+  typedef int I __attribute__((vector_size(4 * W)));
+};
 
 // exp(x) for x clamped to [-708, 708]: x = k ln2 + r with |r| <= ln2/2
 // (Cody-Waite, k rounded by the 1.5 * 2^52 trick), exp(r) by its Taylor
 // series to r^13 (truncation < 4e-18), times 2^k built in the exponent bits.
-inline __attribute__((always_inline)) void Exp4(const V4d& x_in, V4d* out) {
+template <int W>
+inline __attribute__((always_inline)) void ExpSimd(
+    const typename Simd<W>::D& x_in, typename Simd<W>::D* out) {
+  using D = typename Simd<W>::D;
+  using L = typename Simd<W>::L;
   constexpr double kLog2e = 1.4426950408889634;
   constexpr double kLn2Hi = 6.93147180369123816490e-01;
   constexpr double kLn2Lo = 1.90821492927058770002e-10;
   constexpr double kMagic = 6755399441055744.0;  // 1.5 * 2^52
-  const V4d lo = {-708.0, -708.0, -708.0, -708.0};
-  const V4d hi = {708.0, 708.0, 708.0, 708.0};
-  V4d x = x_in > lo ? x_in : lo;
+  const D lo = D{} - 708.0;
+  const D hi = D{} + 708.0;
+  D x = x_in > lo ? x_in : lo;
   x = x < hi ? x : hi;
-  const V4d t = x * kLog2e + kMagic;
-  const V4d k = t - kMagic;
-  const V4d r = (x - k * kLn2Hi) - k * kLn2Lo;
+  const D t = x * kLog2e + kMagic;
+  const D k = t - kMagic;
+  const D r = (x - k * kLn2Hi) - k * kLn2Lo;
   static constexpr double kInvFactorial[] = {1.0 / 6227020800.0,
                                              1.0 / 479001600.0,
                                              1.0 / 39916800.0,
@@ -72,37 +80,40 @@ inline __attribute__((always_inline)) void Exp4(const V4d& x_in, V4d* out) {
                                              0.5,
                                              1.0,
                                              1.0};
-  V4d p = r * kInvFactorial[0] + kInvFactorial[1];
+  D p = r * kInvFactorial[0] + kInvFactorial[1];
   for (int j = 2; j < 14; ++j) p = p * r + kInvFactorial[j];
   std::int64_t magic_bits;
   std::memcpy(&magic_bits, &kMagic, sizeof magic_bits);
-  V4l t_bits;
+  L t_bits;
   std::memcpy(&t_bits, &t, sizeof t_bits);
-  const V4l e = (t_bits - magic_bits + 1023) << 52;
-  V4d scale;
+  const L e = (t_bits - magic_bits + 1023) << 52;
+  D scale;
   std::memcpy(&scale, &e, sizeof scale);
   *out = p * scale;
 }
 
-__attribute__((target("avx2,fma"))) LogisticSums SumsAvx2(
+template <int W>
+inline __attribute__((always_inline)) LogisticSums SumsSimd(
     const double* r, const int* y, std::size_t n, const LogisticPoint& at) {
-  const V4d zero = {0.0, 0.0, 0.0, 0.0};
-  const V4d floor_w = {1e-12, 1e-12, 1e-12, 1e-12};
-  V4d g0 = zero, g1 = zero, h00 = zero, h01 = zero, h11 = zero;
+  using D = typename Simd<W>::D;
+  using I = typename Simd<W>::I;
+  const D zero = D{};
+  const D floor_w = D{} + 1e-12;
+  D g0 = zero, g1 = zero, h00 = zero, h01 = zero, h11 = zero;
   std::size_t i = 0;
-  for (; i + 4 <= n; i += 4) {
-    V4d rv;
+  for (; i + W <= n; i += W) {
+    D rv;
     std::memcpy(&rv, r + i, sizeof rv);
-    V4i yi;
+    I yi;
     std::memcpy(&yi, y + i, sizeof yi);
-    const V4d yv = -__builtin_convertvector(yi != 0, V4d);  // (0 or -1)
-    const V4d z = (rv - at.center) * at.scale;
-    V4d e;
-    Exp4(-(at.a + at.b * z), &e);
-    const V4d p = 1.0 / (1.0 + e);
-    V4d w = p * (1.0 - p);
+    const D yv = -__builtin_convertvector(yi != 0, D);  // (0 or -1)
+    const D z = (rv - at.center) * at.scale;
+    D e;
+    ExpSimd<W>(-(at.a + at.b * z), &e);
+    const D p = 1.0 / (1.0 + e);
+    D w = p * (1.0 - p);
     w = w > floor_w ? w : floor_w;
-    const V4d res = yv - p;
+    const D res = yv - p;
     g0 += res;
     g1 += res * z;
     h00 += w;
@@ -110,7 +121,7 @@ __attribute__((target("avx2,fma"))) LogisticSums SumsAvx2(
     h11 += w * z * z;
   }
   LogisticSums s;
-  for (int l = 0; l < 4; ++l) {
+  for (int l = 0; l < W; ++l) {
     s.g0 += g0[l];
     s.g1 += g1[l];
     s.h00 += h00[l];
@@ -120,31 +131,65 @@ __attribute__((target("avx2,fma"))) LogisticSums SumsAvx2(
   for (; i < n; ++i) AddSample(r[i], y[i], at, &s);
   return s;
 }
+
+__attribute__((target("avx2,fma"))) LogisticSums SumsAvx2(
+    const double* r, const int* y, std::size_t n, const LogisticPoint& at) {
+  return SumsSimd<4>(r, y, n, at);
+}
+
+__attribute__((target("avx512f,avx512dq,avx2,fma"))) LogisticSums SumsAvx512(
+    const double* r, const int* y, std::size_t n, const LogisticPoint& at) {
+  return SumsSimd<8>(r, y, n, at);
+}
 #endif
 
-bool CpuHasAvx2Fma() {
+SimdLevel CpuSimdLevel() {
 #if defined(__GNUC__) && defined(__x86_64__)
-  static const bool has =
-      __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-  return has;
+  static const SimdLevel level = [] {
+    const bool avx2 =
+        __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+    if (avx2 && __builtin_cpu_supports("avx512f") &&
+        __builtin_cpu_supports("avx512dq"))
+      return SimdLevel::kAvx512;
+    return avx2 ? SimdLevel::kAvx2 : SimdLevel::kScalar;
+  }();
+  return level;
 #else
-  return false;
+  return SimdLevel::kScalar;
 #endif
 }
 
 }  // namespace
 
-bool LogisticSumsUseAvx2(bool allow_avx2) {
-  return allow_avx2 && CpuHasAvx2Fma();
+SimdLevel LogisticSumsLevel(SimdLevel max_level) {
+  return std::min(max_level, CpuSimdLevel());
+}
+
+const char* SimdLevelName(SimdLevel level) {
+  switch (level) {
+    case SimdLevel::kAvx512:
+      return "AVX-512";
+    case SimdLevel::kAvx2:
+      return "AVX2+FMA";
+    default:
+      return "scalar";
+  }
 }
 
 LogisticSums CalcLogisticSums(const double* r,
                               const int* y,
                               std::size_t n,
                               const LogisticPoint& at,
-                              bool allow_avx2) {
+                              SimdLevel max_level) {
 #if defined(__GNUC__) && defined(__x86_64__)
-  if (LogisticSumsUseAvx2(allow_avx2)) return SumsAvx2(r, y, n, at);
+  switch (LogisticSumsLevel(max_level)) {
+    case SimdLevel::kAvx512:
+      return SumsAvx512(r, y, n, at);
+    case SimdLevel::kAvx2:
+      return SumsAvx2(r, y, n, at);
+    default:
+      break;
+  }
 #endif
   return SumsBaseline(r, y, n, at);
 }

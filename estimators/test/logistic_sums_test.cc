@@ -40,11 +40,12 @@ void ExpectNear(const LogisticSums& a,
   EXPECT_NEAR(a.h11, b.h11, tol) << what;
 }
 
-// The AVX2 path (polynomial exp, 4 lanes) and the scalar one give the
+// The AVX-512 and AVX2 paths (polynomial exp, 8 and 4 lanes) and the
+// scalar one give the
 // sums of the formula to rounding, for moderate and for saturating linear
 // predictors (|a + b z| up to ~2000, where exp is clamped), odd lengths
 // (the vector tail) and slip flags other than 0/1.
-TEST(LogisticSums, BothPathsMatchTheFormula) {
+TEST(LogisticSums, EveryPathMatchesTheFormula) {
   std::mt19937_64 rng(3);
   std::normal_distribution<double> ratio(0.6, 0.25);
   std::uniform_int_distribution<int> flag(-2, 3);
@@ -62,19 +63,19 @@ TEST(LogisticSums, BothPathsMatchTheFormula) {
       const std::string what =
           "n " + std::to_string(n) + " b " + std::to_string(at.b);
       const double scale = static_cast<double>(n) * (1.0 + std::fabs(at.b));
-      ExpectNear(CalcLogisticSums(r.data(), y.data(), n, at, false),
-                 want,
-                 scale,
-                 what + " scalar");
-      ExpectNear(CalcLogisticSums(r.data(), y.data(), n, at, true),
-                 want,
-                 scale,
-                 what + " default");
+      for (SimdLevel level :
+           {SimdLevel::kScalar, SimdLevel::kAvx2, SimdLevel::kAvx512}) {
+        ExpectNear(CalcLogisticSums(r.data(), y.data(), n, at, level),
+                   want,
+                   scale,
+                   what + " " + SimdLevelName(LogisticSumsLevel(level)));
+      }
     }
   }
-  EXPECT_FALSE(LogisticSumsUseAvx2(false));
+  EXPECT_EQ(LogisticSumsLevel(SimdLevel::kScalar), SimdLevel::kScalar);
+  EXPECT_LE(LogisticSumsLevel(SimdLevel::kAvx2), SimdLevel::kAvx2);
   std::printf("CalcLogisticSums runs %s here\n",
-              LogisticSumsUseAvx2() ? "AVX2+FMA" : "scalar");
+              SimdLevelName(LogisticSumsLevel()));
 }
 
 // A broken vector exp would show as a wrong probability: the gradient sum

@@ -26,17 +26,24 @@ struct LogisticSums {
   double h11 = 0.0;
 };
 
-/// The sums over n pairs (y: 0 = stick, anything else = slip). With
-/// `allow_avx2` and a CPU with AVX2 + FMA the pass runs 4 samples per
-/// instruction with a polynomial exp (relative error < 5e-16); otherwise
-/// one sample at a time with std::exp. Both agree to rounding.
+/// Instruction sets for the sums, narrowest first.
+enum class SimdLevel { kScalar = 0, kAvx2 = 1, kAvx512 = 2 };
+
+/// The sums over n pairs (y: 0 = stick, anything else = slip), with the
+/// widest instruction set up to `max_level` that the CPU has: AVX-512 (8
+/// samples per instruction) or AVX2 + FMA (4) with a polynomial exp
+/// (relative error < 5e-16), else one sample at a time with std::exp. All
+/// agree to rounding.
 LogisticSums CalcLogisticSums(const double* r,
                               const int* y,
                               std::size_t n,
                               const LogisticPoint& at,
-                              bool allow_avx2 = true);
+                              SimdLevel max_level = SimdLevel::kAvx512);
 
-/// True when CalcLogisticSums(..., allow_avx2) takes the AVX2 path here.
-bool LogisticSumsUseAvx2(bool allow_avx2 = true);
+/// The instruction set CalcLogisticSums(..., max_level) uses here.
+SimdLevel LogisticSumsLevel(SimdLevel max_level = SimdLevel::kAvx512);
+
+/// "AVX-512", "AVX2+FMA" or "scalar".
+const char* SimdLevelName(SimdLevel level);
 
 }  // namespace frictiond
