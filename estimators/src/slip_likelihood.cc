@@ -156,6 +156,7 @@ ConditionalSlipLikelihood FitConditionalSlipLikelihood(
     win_lo[w] = windows[w].fn_lo_n;
     win_hi[w] = windows[w].fn_hi_n;
   }
+  const double inv_step = 1.0 / step;  // rounding is absorbed by the margin
   std::vector<int> first_w(n, 0);
   std::vector<int> count_w(n, 0);
   std::vector<std::ptrdiff_t> diff(n_windows + 1, 0);
@@ -164,10 +165,12 @@ ConditionalSlipLikelihood FitConditionalSlipLikelihood(
     if (!std::isfinite(x) || !std::isfinite(ratio[i])) continue;
     // Candidates: the windows whose [lo, hi) can hold x, plus one on each
     // side against rounding; the exact test decides.
-    const double lo_cell = std::clamp(
-        (x - half - first) / step, -2.0, static_cast<double>(n_windows) + 2);
-    const double hi_cell = std::clamp(
-        (x + half - first) / step, -2.0, static_cast<double>(n_windows) + 2);
+    const double lo_cell = std::clamp((x - half - first) * inv_step,
+                                      -2.0,
+                                      static_cast<double>(n_windows) + 2);
+    const double hi_cell = std::clamp((x + half - first) * inv_step,
+                                      -2.0,
+                                      static_cast<double>(n_windows) + 2);
     const int a = std::max(0, static_cast<int>(lo_cell + 2.0) - 2);
     const int b = std::min(n_windows - 1, static_cast<int>(hi_cell + 2.0) - 1);
     // Both bounds rise with w: the candidates ending at or below x come

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <set>
 #include <stdexcept>
 
@@ -70,10 +71,14 @@ void FillQuantiles(RegressionModel* m, const Eigen::VectorXd& residuals) {
 }
 
 // Fits mu on `rows` with `terms`, fixing slopes of inputs without span.
+// mu[i] is data.mu(i); `has_span` remembers the span check per input
+// across calls.
 FitStatus FitRegression(const StrokeData& data,
+                        const std::vector<double>& mu,
                         const std::vector<std::size_t>& rows,
                         std::vector<Term> terms,
                         double min_relative_span,
+                        std::map<std::string, bool>* has_span,
                         RegressionModel* out,
                         std::string* why) {
   // Inputs without span: drop their terms (reported as unidentified).
@@ -88,21 +93,27 @@ FitStatus FitRegression(const StrokeData& data,
     if (!col)
       throw std::invalid_argument("term '" + t.Name() + "': no column '" +
                                   t.input + "' in the data");
-    std::vector<double> x;
-    x.reserve(rows.size());
-    for (std::size_t r : rows) x.push_back((*col)[r]);
-    const std::vector<double> q = SelectQuantiles(&x, {0.05, 0.5, 0.95});
-    const double span = q[2] - q[0];
-    const double mag = std::fabs(q[1]);
-    if (!(span > min_relative_span * mag) || !(span > 0)) {
-      unidentified.push_back(t.Name());
-    } else {
+    auto known = has_span->find(t.input);
+    if (known == has_span->end()) {
+      std::vector<double> x;
+      x.reserve(rows.size());
+      for (std::size_t r : rows) x.push_back((*col)[r]);
+      const std::vector<double> q = SelectQuantiles(&x, {0.05, 0.5, 0.95});
+      const double span = q[2] - q[0];
+      const double mag = std::fabs(q[1]);
+      known =
+          has_span->emplace(t.input, span > min_relative_span * mag && span > 0)
+              .first;
+    }
+    if (known->second) {
       kept.push_back(t);
+    } else {
+      unidentified.push_back(t.Name());
     }
   }
   const Eigen::MatrixXd X = BuildDesign(data, kept, rows);
   Eigen::VectorXd y(rows.size());
-  for (std::size_t r = 0; r < rows.size(); ++r) y(r) = data.mu(rows[r]);
+  for (std::size_t r = 0; r < rows.size(); ++r) y(r) = mu[rows[r]];
   const OlsResult ols = FitOls(X, y);
   if (ols.status == FitStatus::kTooFewSamples ||
       ols.status == FitStatus::kFailed) {
@@ -314,12 +325,16 @@ StochasticFit FitStochasticModel(const StrokeData& input,
   }
   std::vector<Term> terms;
   for (const auto& t : options.terms) terms.push_back(Term::Parse(t));
+  // mu = Ft/Fn once for every sample.
+  std::vector<double> mu(data.size());
+  for (std::size_t i = 0; i < data.size(); ++i)
+    mu[i] = data.ft_n[i] / data.fn_n[i];
   // Coulomb: the mean mu of slipping samples.
   double sum = 0;
-  for (std::size_t r : rows) sum += data.mu(r);
+  for (std::size_t r : rows) sum += mu[r];
   m.mu_coulomb = sum / rows.size();
   double mae = 0;
-  for (std::size_t r : rows) mae += std::fabs(data.mu(r) - m.mu_coulomb);
+  for (std::size_t r : rows) mae += std::fabs(mu[r] - m.mu_coulomb);
   m.mae_coulomb = mae / rows.size();
   // Input statistics (for defaults and extrapolation flags).
   std::set<std::string> inputs;
@@ -343,8 +358,9 @@ StochasticFit FitStochasticModel(const StrokeData& input,
     m.inputs[name] = s;
   }
   // eq. (1) and the Fn-only model of III-C.
-  FitStatus st =
-      FitRegression(data, rows, terms, options.min_relative_span, &m.mu, &why);
+  std::map<std::string, bool> has_span;
+  FitStatus st = FitRegression(
+      data, mu, rows, terms, options.min_relative_span, &has_span, &m.mu, &why);
   if (st == FitStatus::kTooFewSamples || st == FitStatus::kFailed) {
     fit.status = st;
     fit.why = "mu model: " + why;
@@ -352,9 +368,11 @@ StochasticFit FitStochasticModel(const StrokeData& input,
   }
   std::string why_fn;
   FitStatus st_fn = FitRegression(data,
+                                  mu,
                                   rows,
                                   {Term::Intercept(), Term::Linear("fn_n")},
                                   options.min_relative_span,
+                                  &has_span,
                                   &m.mu_fn_only,
                                   &why_fn);
   if (st_fn == FitStatus::kTooFewSamples || st_fn == FitStatus::kFailed) {
@@ -370,7 +388,7 @@ StochasticFit FitStochasticModel(const StrokeData& input,
   for (std::size_t i = 0; i < data.size(); ++i) {
     if (data.fn_n[i] < options.labelling.max_fn_n &&
         data.v_mm_s[i] < options.labelling.max_v_mm_s) {
-      ratio.push_back(data.mu(i));
+      ratio.push_back(mu[i]);
       slip.push_back(data.slip[i]);
     }
   }
