@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <string>
+#include <utility>
 
 namespace frictiond {
 
@@ -93,34 +95,57 @@ std::vector<double> MedianFilter(const std::vector<double>& x, int kernel) {
   return out;
 }
 
-std::vector<unsigned char> CalcMedianAbove(const std::vector<double>& x,
-                                           int kernel,
-                                           double threshold) {
+namespace {
+
+// For each threshold t[j], whether the upper median of each (shrinking)
+// window of x exceeds it: the upper median of a sorted window of m values
+// (index m/2, as MedianFilter) exceeds t exactly when at least m - m/2 of
+// them do. One sliding count per threshold, one pass.
+template <std::size_t K>
+void MedianAboveEach(const std::vector<double>& x,
+                     int kernel,
+                     const double (&t)[K],
+                     std::vector<unsigned char> (&out)[K]) {
   const std::size_t n = x.size();
-  std::vector<unsigned char> out(n, 0);
   for (std::size_t i = 0; i < n; ++i) {
     if (std::isnan(x[i]))
-      throw std::invalid_argument("CalcMedianAbove: x[" + std::to_string(i) +
+      throw std::invalid_argument("median filter input x[" + std::to_string(i) +
                                   "] is NaN");
   }
+  for (std::size_t j = 0; j < K; ++j) out[j].assign(n, 0);
   if (kernel <= 1 || n < 3) {
-    for (std::size_t i = 0; i < n; ++i) out[i] = x[i] > threshold;
-    return out;
+    for (std::size_t j = 0; j < K; ++j)
+      for (std::size_t i = 0; i < n; ++i) out[j][i] = x[i] > t[j];
+    return;
   }
   if (kernel % 2 == 0) ++kernel;
   const std::size_t half = static_cast<std::size_t>(kernel / 2);
-  // The upper median of a sorted window of m values (index m/2, as
-  // MedianFilter) exceeds t exactly when at least m - m/2 of them do.
-  std::vector<std::size_t> above(n + 1, 0);  // prefix counts of x > t
-  for (std::size_t i = 0; i < n; ++i)
-    above[i + 1] = above[i] + (x[i] > threshold);
+  std::size_t count[K] = {};
+  const std::size_t first_hi = std::min(n - 1, half);
+  for (std::size_t i = 0; i <= first_hi; ++i)
+    for (std::size_t j = 0; j < K; ++j) count[j] += x[i] > t[j];
   for (std::size_t i = 0; i < n; ++i) {
     const std::size_t lo = i >= half ? i - half : 0;
     const std::size_t hi = std::min(n - 1, i + half);
     const std::size_t m = hi - lo + 1;
-    out[i] = above[hi + 1] - above[lo] >= m - m / 2;
+    for (std::size_t j = 0; j < K; ++j) out[j][i] = count[j] >= m - m / 2;
+    // Slide to i + 1: x[i + 1 + half] enters, x[i - half] leaves.
+    if (i + 1 + half < n)
+      for (std::size_t j = 0; j < K; ++j) count[j] += x[i + 1 + half] > t[j];
+    if (i >= half)
+      for (std::size_t j = 0; j < K; ++j) count[j] -= x[i - half] > t[j];
   }
-  return out;
+}
+
+}  // namespace
+
+std::vector<unsigned char> CalcMedianAbove(const std::vector<double>& x,
+                                           int kernel,
+                                           double threshold) {
+  const double t[1] = {threshold};
+  std::vector<unsigned char> out[1];
+  MedianAboveEach(x, kernel, t, out);
+  return std::move(out[0]);
 }
 
 double CalcMedianDt(const std::vector<double>& t_s) {
@@ -131,9 +156,26 @@ double CalcMedianDt(const std::vector<double>& t_s) {
     if (d > 0) dt.push_back(d);
   }
   if (dt.empty()) return 0.0;
-  auto mid = dt.begin() + dt.size() / 2;
-  std::nth_element(dt.begin(), mid, dt.end());
-  return *mid;
+  const std::size_t k = dt.size() / 2;
+  // Sampling intervals take few distinct values: guess the median from an
+  // evenly strided sample and confirm it by counting (exact); select over
+  // all intervals only when the guess is not the k-th smallest.
+  if (dt.size() > 1024) {
+    const std::size_t stride = dt.size() / 256;
+    std::vector<double> sample;
+    for (std::size_t i = 0; i < dt.size(); i += stride) sample.push_back(dt[i]);
+    std::nth_element(
+        sample.begin(), sample.begin() + sample.size() / 2, sample.end());
+    const double guess = sample[sample.size() / 2];
+    std::size_t below = 0, equal = 0;
+    for (double d : dt) {
+      below += d < guess;
+      equal += d == guess;
+    }
+    if (below <= k && k < below + equal) return guess;
+  }
+  std::nth_element(dt.begin(), dt.begin() + k, dt.end());
+  return dt[k];
 }
 
 namespace {
@@ -167,10 +209,11 @@ std::vector<int> LabelSlip(const StrokeData& data,
     kernel = static_cast<int>(std::lround(options.median_window_s / dt));
   // The rule only compares the filtered speed with the two thresholds:
   // counts replace the filter (CalcMedianAbove).
-  const std::vector<unsigned char> above_floor =
-      CalcMedianAbove(data.v_mm_s, kernel, options.floor_mm_s);
-  const std::vector<unsigned char> above_peak =
-      CalcMedianAbove(data.v_mm_s, kernel, options.peak_mm_s);
+  const double thresholds[2] = {options.floor_mm_s, options.peak_mm_s};
+  std::vector<unsigned char> above[2];
+  MedianAboveEach(data.v_mm_s, kernel, thresholds, above);
+  const std::vector<unsigned char>& above_floor = above[0];
+  const std::vector<unsigned char>& above_peak = above[1];
   // Episodes: maximal runs with v > floor, not crossing gaps (paper II-C),
   // slipping when their peak exceeds peak_mm_s.
   std::size_t i = 0;

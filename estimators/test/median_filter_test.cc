@@ -76,6 +76,40 @@ TEST(MedianFilter, MedianAboveEqualsFilterThenThreshold) {
   EXPECT_THROW(CalcMedianAbove({1.0, NAN, 2.0}, 3, 0.5), std::invalid_argument);
 }
 
+// The median sampling interval (upper median of the positive steps) for
+// quantised intervals (the counted guess), continuous ones (the selection
+// over all), gaps, repeated and backward time stamps.
+TEST(MedianFilter, MedianDtIsTheUpperMedianOfPositiveSteps) {
+  std::mt19937 rng(45);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int kind = 0; kind < 3; ++kind) {
+    for (int n : {1, 2, 3, 500, 5000, 40001}) {
+      std::vector<double> t(n);
+      double now = 0.0;
+      for (double& s : t) {
+        const double r = u(rng);
+        if (kind == 0) {
+          now += r < 0.01 ? 2.5 : 0.005;  // 200 Hz with rests
+        } else if (kind == 1) {
+          now += 0.004 + 0.002 * r;  // jittered clock
+        } else {
+          now += r < 0.2 ? 0.0 : (r < 0.25 ? -0.001 : 0.01 * r);
+        }
+        s = now;
+      }
+      std::vector<double> steps;
+      for (int i = 1; i < n; ++i)
+        if (t[i] - t[i - 1] > 0) steps.push_back(t[i] - t[i - 1]);
+      double want = 0.0;
+      if (!steps.empty()) {
+        std::sort(steps.begin(), steps.end());
+        want = steps[steps.size() / 2];
+      }
+      EXPECT_EQ(CalcMedianDt(t), want) << "kind " << kind << " n " << n;
+    }
+  }
+}
+
 TEST(MedianFilter, RemovesIsolatedSpikes) {
   std::vector<double> v(50, 20.0);
   v[10] = 500.0;
