@@ -147,9 +147,9 @@ ConditionalSlipLikelihood FitConditionalSlipLikelihood(
   // Each sample goes straight to the few windows that hold it (lo <= Fn <
   // hi), found from its Fn on the centre grid: no sort by Fn. The windows
   // holding one Fn are consecutive (both bounds rise with w), so a sample
-  // is one range [first_w, first_w + count). Pass 1 finds the ranges and
-  // counts per window (difference array), pass 2 fills one flat array per
-  // quantity, window after window.
+  // belongs to one range [lo, hi] of windows; consecutive samples with the
+  // same range form a run (loads change slowly), and each run is copied
+  // into each of its windows as one block.
   const std::size_t n = fn_n.size();
   std::vector<double> win_lo(n_windows), win_hi(n_windows);
   for (int w = 0; w < n_windows; ++w) {
@@ -157,50 +157,68 @@ ConditionalSlipLikelihood FitConditionalSlipLikelihood(
     win_hi[w] = windows[w].fn_hi_n;
   }
   const double inv_step = 1.0 / step;  // rounding is absorbed by the margin
-  std::vector<int> first_w(n, 0);
-  std::vector<int> count_w(n, 0);
-  std::vector<std::ptrdiff_t> diff(n_windows + 1, 0);
+  struct Run {
+    std::size_t begin, end;  // samples [begin, end)
+    int lo, hi;              // windows [lo, hi]
+  };
+  std::vector<Run> runs;
+  std::vector<std::size_t> offset(n_windows + 1, 0);  // counts, then offsets
+  auto close_run = [&](Run* run, std::size_t end) {
+    if (run->lo <= run->hi && end > run->begin) {
+      run->end = end;
+      runs.push_back(*run);
+      for (int w = run->lo; w <= run->hi; ++w)
+        offset[w + 1] += end - run->begin;
+    }
+  };
+  Run run{0, 0, 0, -1};
   for (std::size_t i = 0; i < n; ++i) {
     const double x = fn_n[i];
-    if (!std::isfinite(x) || !std::isfinite(ratio[i])) continue;
-    // Candidates: the windows whose [lo, hi) can hold x, plus one on each
-    // side against rounding; the exact test decides.
-    const double lo_cell = std::clamp((x - half - first) * inv_step,
-                                      -2.0,
-                                      static_cast<double>(n_windows) + 2);
-    const double hi_cell = std::clamp((x + half - first) * inv_step,
-                                      -2.0,
-                                      static_cast<double>(n_windows) + 2);
-    const int a = std::max(0, static_cast<int>(lo_cell + 2.0) - 2);
-    const int b = std::min(n_windows - 1, static_cast<int>(hi_cell + 2.0) - 1);
-    // Both bounds rise with w: the candidates ending at or below x come
-    // first, those starting at or below x form a prefix (branch-free).
-    int lo = a, hi = a - 1;
-    for (int w = a; w <= b; ++w) {
-      lo += win_hi[w] <= x;
-      hi += win_lo[w] <= x;
+    int lo = 0, hi = -1;  // no window
+    if (std::isfinite(x) && std::isfinite(ratio[i])) {
+      // Candidates: the windows whose [lo, hi) can hold x, plus one on each
+      // side against rounding; both bounds rise with w, so the candidates
+      // ending at or below x come first and those starting at or below x
+      // form a prefix (branch-free).
+      const double lo_cell = std::clamp((x - half - first) * inv_step,
+                                        -2.0,
+                                        static_cast<double>(n_windows) + 2);
+      const double hi_cell = std::clamp((x + half - first) * inv_step,
+                                        -2.0,
+                                        static_cast<double>(n_windows) + 2);
+      const int a = std::max(0, static_cast<int>(lo_cell + 2.0) - 2);
+      const int b =
+          std::min(n_windows - 1, static_cast<int>(hi_cell + 2.0) - 1);
+      lo = a;
+      hi = a - 1;
+      for (int w = a; w <= b; ++w) {
+        lo += win_hi[w] <= x;
+        hi += win_lo[w] <= x;
+      }
+      if (lo > hi) {
+        lo = 0;
+        hi = -1;
+      }
     }
-    if (lo > hi) continue;
-    first_w[i] = lo;
-    count_w[i] = hi - lo + 1;
-    ++diff[lo];
-    --diff[hi + 1];
+    if (lo != run.lo || hi != run.hi) {
+      close_run(&run, i);
+      run = Run{i, i, lo, hi};
+    }
   }
-  std::vector<std::size_t> offset(n_windows + 1, 0);
-  std::ptrdiff_t members = 0;
-  for (int w = 0; w < n_windows; ++w) {
-    members += diff[w];
-    offset[w + 1] = offset[w] + static_cast<std::size_t>(members);
-  }
+  close_run(&run, n);
+  for (int w = 0; w < n_windows; ++w) offset[w + 1] += offset[w];
   std::vector<double> r(offset[n_windows]);
   std::vector<int> s(offset[n_windows]);
   {
     std::vector<std::size_t> next(offset.begin(), offset.end() - 1);
-    for (std::size_t i = 0; i < n; ++i) {
-      const int is_slip = slip[i] != 0;
-      for (int w = first_w[i]; w < first_w[i] + count_w[i]; ++w) {
-        r[next[w]] = ratio[i];
-        s[next[w]++] = is_slip;
+    for (const Run& u : runs) {
+      for (int w = u.lo; w <= u.hi; ++w) {
+        std::copy(ratio.begin() + u.begin,
+                  ratio.begin() + u.end,
+                  r.begin() + next[w]);
+        for (std::size_t i = u.begin; i < u.end; ++i)
+          s[next[w] + (i - u.begin)] = slip[i] != 0;
+        next[w] += u.end - u.begin;
       }
     }
   }
