@@ -120,6 +120,35 @@ void MedianAboveEach(const std::vector<double>& x,
   }
   if (kernel % 2 == 0) ++kernel;
   const std::size_t half = static_cast<std::size_t>(kernel / 2);
+  if (kernel <= 63 && n > static_cast<std::size_t>(kernel)) {
+    // Short kernels: the window counts as sums of shifted 0/1 byte arrays
+    // (vectorised), full windows in the interior, shrinking ones at the
+    // ends counted directly.
+    const std::size_t k = static_cast<std::size_t>(kernel);
+    const unsigned char need = static_cast<unsigned char>(k - k / 2);
+    std::vector<unsigned char> above(n), sum(n);
+    for (std::size_t j = 0; j < K; ++j) {
+      for (std::size_t i = 0; i < n; ++i) above[i] = x[i] > t[j];
+      std::fill(sum.begin(), sum.end(), 0);
+      for (std::size_t d = 0; d < k; ++d) {
+        const unsigned char* src = above.data() + d;
+        unsigned char* dst = sum.data() + half;
+        for (std::size_t i = 0; i + k <= n; ++i) dst[i] += src[i];
+      }
+      for (std::size_t i = half; i + half < n; ++i) out[j][i] = sum[i] >= need;
+      auto edge = [&](std::size_t i) {
+        const std::size_t lo = i >= half ? i - half : 0;
+        const std::size_t hi = std::min(n - 1, i + half);
+        std::size_t count = 0;
+        for (std::size_t a = lo; a <= hi; ++a) count += above[a];
+        const std::size_t m = hi - lo + 1;
+        out[j][i] = count >= m - m / 2;
+      };
+      for (std::size_t i = 0; i < half; ++i) edge(i);
+      for (std::size_t i = n - half; i < n; ++i) edge(i);
+    }
+    return;
+  }
   std::size_t count[K] = {};
   const std::size_t first_hi = std::min(n - 1, half);
   for (std::size_t i = 0; i <= first_hi; ++i)

@@ -297,11 +297,26 @@ StochasticFit FitStochasticModel(const StrokeData& input,
     EnsureLabels(&labelled, options.labelling);
   }
   const StrokeData& data = has_labels ? input : labelled;
-  const std::vector<bool> mask = CalcFitMask(data, options.labelling);
+  // One pass: mu = Ft/Fn, the samples within the exclusion bounds (for the
+  // sigmoid likelihood) and the slipping ones among them (the fit rows,
+  // CalcFitMask).
+  const std::size_t n = data.size();
+  std::vector<double> mu(n);
   std::vector<std::size_t> rows;
   std::vector<int> strokes;
-  for (std::size_t i = 0; i < data.size(); ++i) {
-    if (mask[i]) {
+  std::vector<double> ratio;
+  std::vector<int> slip;
+  rows.reserve(n);
+  ratio.reserve(n);
+  slip.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    mu[i] = data.ft_n[i] / data.fn_n[i];
+    if (!(data.fn_n[i] < options.labelling.max_fn_n &&
+          data.v_mm_s[i] < options.labelling.max_v_mm_s))
+      continue;
+    ratio.push_back(mu[i]);
+    slip.push_back(data.slip[i]);
+    if (data.slip[i] == 1) {
       rows.push_back(i);
       if (strokes.empty() || strokes.back() != data.stroke[i])
         strokes.push_back(data.stroke[i]);
@@ -325,10 +340,6 @@ StochasticFit FitStochasticModel(const StrokeData& input,
   }
   std::vector<Term> terms;
   for (const auto& t : options.terms) terms.push_back(Term::Parse(t));
-  // mu = Ft/Fn once for every sample.
-  std::vector<double> mu(data.size());
-  for (std::size_t i = 0; i < data.size(); ++i)
-    mu[i] = data.ft_n[i] / data.fn_n[i];
   // Coulomb: the mean mu of slipping samples.
   double sum = 0;
   for (std::size_t r : rows) sum += mu[r];
@@ -381,17 +392,6 @@ StochasticFit FitStochasticModel(const StrokeData& input,
     return fit;
   }
   // Sigmoid likelihood on all samples within the exclusion bounds.
-  std::vector<double> ratio;
-  std::vector<int> slip;
-  ratio.reserve(data.size());
-  slip.reserve(data.size());
-  for (std::size_t i = 0; i < data.size(); ++i) {
-    if (data.fn_n[i] < options.labelling.max_fn_n &&
-        data.v_mm_s[i] < options.labelling.max_v_mm_s) {
-      ratio.push_back(mu[i]);
-      slip.push_back(data.slip[i]);
-    }
-  }
   m.likelihood =
       FitSlipLikelihood(ratio, slip, options.never_level, options.always_level);
   fit.status = st;

@@ -1,0 +1,82 @@
+#include "frictiond/estimators/identification.h"
+
+#include <stdexcept>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "frictiond/estimators/preprocessing.h"
+#include "frictiond/testing/stroke_simulator.h"
+
+namespace frictiond {
+namespace {
+
+using testing::SimulateStrokes;
+using testing::SimulationSpec;
+
+StrokeData Unlabelled(std::uint64_t seed) {
+  SimulationSpec spec;  // b0 = 0.9, b1 = 0.004, b2 = -0.06, sigma = 0.05
+  StrokeData d = SimulateStrokes(spec, seed);
+  d.slip.clear();
+  d.stroke.clear();
+  return d;
+}
+
+// One call gives what the steps give one by one, on one thread and on two,
+// and recovers the planted eq. (1).
+TEST(IdentifyMaterial, EqualsTheStepsOnOneAndTwoThreads) {
+  const StrokeData raw = Unlabelled(31);
+  MaterialIdentificationOptions options;
+  // The steps one by one.
+  StrokeData labelled = raw;
+  EnsureLabels(&labelled, options.fit.labelling);
+  const StochasticFit fit = FitStochasticModel(labelled, options.fit);
+  ASSERT_EQ(fit.status, FitStatus::kOk) << fit.why;
+  std::vector<double> ratio, fn, v;
+  for (std::size_t i = 0; i < labelled.size(); ++i) {
+    ratio.push_back(labelled.mu(i));
+    if (labelled.slip[i]) {
+      fn.push_back(labelled.fn_n[i]);
+      v.push_back(labelled.v_mm_s[i]);
+    }
+  }
+  const ConditionalSlipLikelihood conditional =
+      FitConditionalSlipLikelihood(labelled.fn_n, ratio, labelled.slip);
+  const SpanCoverage coverage = CalcSpanCoverage(fn, v, options.reference);
+  ASSERT_TRUE(conditional.valid) << conditional.why;
+  for (int threads : {1, 2}) {
+    options.threads = threads;
+    const MaterialIdentification id = IdentifyMaterial(raw, options);
+    ASSERT_EQ(id.fit.status, FitStatus::kOk) << id.fit.why;
+    EXPECT_EQ(id.fit.model.mu.beta, fit.model.mu.beta) << threads;
+    EXPECT_EQ(id.fit.model.mu.eps_quantiles, fit.model.mu.eps_quantiles);
+    EXPECT_EQ(id.fit.model.likelihood.c1, fit.model.likelihood.c1);
+    EXPECT_EQ(id.fit.model.likelihood.c2, fit.model.likelihood.c2);
+    EXPECT_EQ(id.conditional.knot_fn_n, conditional.knot_fn_n);
+    EXPECT_EQ(id.conditional.knot_c1, conditional.knot_c1);
+    EXPECT_EQ(id.conditional.knot_c2, conditional.knot_c2);
+    EXPECT_EQ(id.coverage.span_pct, coverage.span_pct);
+    EXPECT_EQ(id.coverage.samples, coverage.samples);
+    const RegressionModel& m = id.fit.model.mu;
+    EXPECT_NEAR(m.beta(0), 0.9, 4 * m.std_err(0));
+    EXPECT_NEAR(m.beta(1), 0.004, 4 * m.std_err(1));
+    EXPECT_NEAR(m.beta(2), -0.06, 4 * m.std_err(2));
+    EXPECT_GT(id.coverage.span_pct, 0.0);
+  }
+}
+
+TEST(IdentifyMaterial, RejectsBadOptions) {
+  const StrokeData raw = Unlabelled(32);
+  MaterialIdentificationOptions options;
+  options.threads = 0;
+  EXPECT_THROW(IdentifyMaterial(raw, options), std::invalid_argument);
+  options.threads = 2;
+  options.reference = {1.0, 1.0, 15.0, 80.0};  // empty Fn range
+  EXPECT_THROW(IdentifyMaterial(raw, options), std::invalid_argument);
+  options.reference = {0.5, 4.5, 15.0, 80.0};
+  options.conditional.window_n = -1.0;
+  EXPECT_THROW(IdentifyMaterial(raw, options), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace frictiond
