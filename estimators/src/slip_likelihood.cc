@@ -172,8 +172,12 @@ ConditionalSlipLikelihood FitConditionalSlipLikelihood(
     }
   };
   Run run{0, 0, 0, -1};
+  // Fn interval in which a sample has exactly the current run's windows.
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  double keep_lo = kInf, keep_hi = -kInf;
   for (std::size_t i = 0; i < n; ++i) {
     const double x = fn_n[i];
+    if (x >= keep_lo && x < keep_hi && std::isfinite(ratio[i])) continue;
     int lo = 0, hi = -1;  // no window
     if (std::isfinite(x) && std::isfinite(ratio[i])) {
       // Candidates: the windows whose [lo, hi) can hold x, plus one on each
@@ -203,6 +207,16 @@ ConditionalSlipLikelihood FitConditionalSlipLikelihood(
     if (lo != run.lo || hi != run.hi) {
       close_run(&run, i);
       run = Run{i, i, lo, hi};
+      if (lo <= hi) {
+        // In windows lo..hi exactly: inside the last one's start and the
+        // first one's end, outside the neighbours.
+        keep_lo = std::max(win_lo[hi], lo > 0 ? win_hi[lo - 1] : -kInf);
+        keep_hi =
+            std::min(win_hi[lo], hi + 1 < n_windows ? win_lo[hi + 1] : kInf);
+      } else {
+        keep_lo = kInf;
+        keep_hi = -kInf;
+      }
     }
   }
   close_run(&run, n);

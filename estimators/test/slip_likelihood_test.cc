@@ -175,32 +175,38 @@ TEST(ConditionalSlipLikelihood, WindowMembershipIsExact) {
   std::mt19937_64 rng(21);
   std::uniform_int_distribution<int> tenth(0, 60);
   std::uniform_int_distribution<int> coin(0, 1);
-  std::vector<double> fn, ratio;
-  std::vector<int> slip;
-  for (int i = 0; i < 5000; ++i) {
-    fn.push_back(tenth(rng) / 10.0);  // 0.0 .. 6.0 N in 0.1 N steps
-    ratio.push_back(0.5);
-    slip.push_back(coin(rng));
-  }
-  for (const auto& [step, window] : std::vector<std::pair<double, double>>{
-           {0.2, 0.6}, {0.3, 0.2}, {0.1, 0.1}, {0.5, 2.0}}) {
-    ConditionalSlipOptions o;
-    o.step_n = step;
-    o.window_n = window;
-    const ConditionalSlipLikelihood L =
-        FitConditionalSlipLikelihood(fn, ratio, slip, o);
-    ASSERT_FALSE(L.windows.empty());
-    for (const SlipWindowFit& w : L.windows) {
-      int samples = 0, slipping = 0;
-      for (std::size_t i = 0; i < fn.size(); ++i) {
-        if (w.fn_lo_n <= fn[i] && fn[i] < w.fn_hi_n) {
-          ++samples;
-          slipping += slip[i];
+  // Random loads, and a slow load ramp up and down (long runs of samples in
+  // the same windows, as in a stroke); both 0.0 .. 6.0 N in 0.1 N steps.
+  for (bool ramp : {false, true}) {
+    std::vector<double> fn, ratio;
+    std::vector<int> slip;
+    for (int i = 0; i < 5000; ++i) {
+      fn.push_back(ramp ? std::round(30.0 + 30.0 * std::sin(i / 300.0)) / 10.0
+                        : tenth(rng) / 10.0);
+      ratio.push_back(0.5);
+      slip.push_back(coin(rng));
+    }
+    for (const auto& [step, window] : std::vector<std::pair<double, double>>{
+             {0.2, 0.6}, {0.3, 0.2}, {0.1, 0.1}, {0.5, 2.0}}) {
+      ConditionalSlipOptions o;
+      o.step_n = step;
+      o.window_n = window;
+      const ConditionalSlipLikelihood L =
+          FitConditionalSlipLikelihood(fn, ratio, slip, o);
+      ASSERT_FALSE(L.windows.empty());
+      for (const SlipWindowFit& w : L.windows) {
+        int samples = 0, slipping = 0;
+        for (std::size_t i = 0; i < fn.size(); ++i) {
+          if (w.fn_lo_n <= fn[i] && fn[i] < w.fn_hi_n) {
+            ++samples;
+            slipping += slip[i];
+          }
         }
+        EXPECT_EQ(w.samples, samples)
+            << "ramp " << ramp << " step " << step << " window " << window
+            << " at " << w.fn_center_n;
+        EXPECT_EQ(w.slipping, slipping) << "at " << w.fn_center_n;
       }
-      EXPECT_EQ(w.samples, samples)
-          << "step " << step << " window " << window << " at " << w.fn_center_n;
-      EXPECT_EQ(w.slipping, slipping) << "at " << w.fn_center_n;
     }
   }
 }
