@@ -211,17 +211,18 @@ namespace {
 
 // True where the step from i-1 to i is a gap (unrecorded rest); dt is the
 // median sampling interval (CalcMedianDt).
-std::vector<bool> CalcGaps(const std::vector<double>& t_s,
-                           double dt,
-                           double gap_factor) {
-  std::vector<bool> gap(t_s.size(), false);
+std::vector<unsigned char> CalcGaps(const std::vector<double>& t_s,
+                                    double dt,
+                                    double gap_factor) {
+  std::vector<unsigned char> gap(t_s.size(), 0);
   if (dt <= 0) return gap;
   for (std::size_t i = 1; i < t_s.size(); ++i)
     gap[i] = (t_s[i] - t_s[i - 1]) > gap_factor * dt;
   return gap;
 }
 
-std::vector<bool> CalcGaps(const std::vector<double>& t_s, double gap_factor) {
+std::vector<unsigned char> CalcGaps(const std::vector<double>& t_s,
+                                    double gap_factor) {
   return CalcGaps(t_s, CalcMedianDt(t_s), gap_factor);
 }
 
@@ -229,7 +230,7 @@ std::vector<bool> CalcGaps(const std::vector<double>& t_s, double gap_factor) {
 std::vector<int> LabelSlip(const StrokeData& data,
                            const SlipLabelOptions& options,
                            double dt,
-                           const std::vector<bool>& gap) {
+                           const std::vector<unsigned char>& gap) {
   const std::size_t n = data.size();
   std::vector<int> slip(n, 0);
   if (n == 0) return slip;
@@ -265,7 +266,7 @@ std::vector<int> LabelSlip(const StrokeData& data,
 
 // SegmentStrokes with the gaps already known.
 std::vector<int> SegmentStrokes(const std::vector<int>& slip,
-                                const std::vector<bool>& gap) {
+                                const std::vector<unsigned char>& gap) {
   const std::size_t n = slip.size();
   std::vector<int> stroke(n, 0);
   int id = 0;
@@ -317,7 +318,8 @@ void EnsureLabels(StrokeData* data, const SlipLabelOptions& options) {
   if (!options.IsValid(&why)) throw std::invalid_argument(why);
   // One median interval and one gap vector for both steps.
   const double dt = CalcMedianDt(data->t_s);
-  const std::vector<bool> gap = CalcGaps(data->t_s, dt, options.gap_factor);
+  const std::vector<unsigned char> gap =
+      CalcGaps(data->t_s, dt, options.gap_factor);
   if (need_slip) data->slip = LabelSlip(*data, options, dt, gap);
   if (need_stroke) data->stroke = SegmentStrokes(data->slip, gap);
 }
@@ -343,7 +345,7 @@ void AddDerivedFeatures(StrokeData* data, double gap_factor) {
   const auto& t = data->t_s;
   const auto& v = data->v_mm_s;
   const auto& fn = data->fn_n;
-  const std::vector<bool> gap = CalcGaps(t, gap_factor);
+  const std::vector<unsigned char> gap = CalcGaps(t, gap_factor);
   std::vector<double> distance(n, 0.0), dwell(n, 0.0), time(n, 0.0),
       accel(n, 0.0), fn_rate(n, 0.0);
   const std::vector<int>& slip = data->slip;

@@ -79,16 +79,23 @@ std::vector<std::pair<double, double>> CalcConvexHull(
   if (!p.empty()) {
     // All on one vertical or horizontal line (e.g. a constant load clamped
     // to the reference span): the hull is the segment between the ends.
-    const auto [lo, hi] = std::minmax_element(p.begin(), p.end());
-    const bool same_x = std::all_of(p.begin(), p.end(), [&](const Point& q) {
-      return q.first == p[0].first;
-    });
-    const bool same_y = std::all_of(p.begin(), p.end(), [&](const Point& q) {
-      return q.second == p[0].second;
-    });
+    bool same_x = true, same_y = true;
+    double y_lo = p[0].second, y_hi = y_lo, x_lo = p[0].first, x_hi = x_lo;
+    for (const Point& q : p) {
+      same_x = same_x && q.first == p[0].first;
+      same_y = same_y && q.second == p[0].second;
+      y_lo = std::min(y_lo, q.second);
+      y_hi = std::max(y_hi, q.second);
+      x_lo = std::min(x_lo, q.first);
+      x_hi = std::max(x_hi, q.first);
+    }
     if (same_x || same_y) {
-      if (*lo == *hi) return {*lo};
-      return {*lo, *hi};
+      const Point lo =
+          same_x ? Point{p[0].first, y_lo} : Point{x_lo, p[0].second};
+      const Point hi =
+          same_x ? Point{p[0].first, y_hi} : Point{x_hi, p[0].second};
+      if (lo == hi) return {lo};
+      return {lo, hi};
     }
   }
   DropInteriorPoints(&p);
