@@ -225,15 +225,22 @@ SlipLikelihoodFit FitSlipLikelihood(const double* ratio,
   // Newton steps until the step is below `tol`. Convergence is quadratic
   // near the optimum, so after a step of size tol the remaining error is of
   // order tol^2. Each step is one pass of CalcLogisticSums over the pairs.
+  // `single`: sums from single-precision probabilities (CalcLogisticSums),
+  // for the steps towards the optimum only.
   auto newton = [&w, &H, mean_r, sd_r](const double* r,
                                        const int* y,
                                        std::size_t m,
                                        double tol,
-                                       int max_iterations) {
+                                       int max_iterations,
+                                       bool single) {
     const double ridge = 1e-6 * m;
     for (int it = 0; it < max_iterations; ++it) {
-      const LogisticSums s =
-          CalcLogisticSums(r, y, m, {w(0), w(1), mean_r, 1.0 / sd_r});
+      const LogisticSums s = CalcLogisticSums(r,
+                                              y,
+                                              m,
+                                              {w(0), w(1), mean_r, 1.0 / sd_r},
+                                              SimdLevel::kAvx512,
+                                              single);
       const Eigen::Vector2d grad(s.g0, s.g1 - ridge * w(1));
       H << s.h00, s.h01, s.h01, s.h11 + ridge;
       const Eigen::Vector2d step = H.ldlt().solve(grad);
@@ -242,8 +249,10 @@ SlipLikelihoodFit FitSlipLikelihood(const double* ratio,
     }
   };
   // On large sets, first converge on evenly strided subsamples (512, then
-  // 4096 pairs): the full data then needs only the last two
-  // (quadratically converging) steps.
+  // 4096 pairs, single precision): the full data then needs one step in
+  // single precision and the last (quadratically converging) ones in
+  // double.
+  bool warm_started = false;
   for (const std::size_t warm : {std::size_t{512}, std::size_t{4096}}) {
     if (n < 4 * warm) break;
     const std::size_t stride = n / warm;
@@ -255,14 +264,27 @@ SlipLikelihoodFit FitSlipLikelihood(const double* ratio,
       ys.push_back(slip[i] ? 1 : 0);
       ys_slip += ys.back();
     }
-    if (ys_slip > 0 && ys_slip < static_cast<int>(ys.size()))
-      newton(rs.data(), ys.data(), rs.size(), warm < 4096 ? 1e-2 : 1e-3, 100);
-    if (!w.allFinite()) w << std::log(double(n_slip) / (n - n_slip)), 0.0;
+    if (ys_slip > 0 && ys_slip < static_cast<int>(ys.size())) {
+      newton(rs.data(),
+             ys.data(),
+             rs.size(),
+             warm < 4096 ? 1e-2 : 1e-3,
+             100,
+             /*single=*/true);
+      warm_started = true;
+    }
+    if (!w.allFinite()) {
+      w << std::log(double(n_slip) / (n - n_slip)), 0.0;
+      warm_started = false;
+    }
   }
-  // Two passes over the full data after the warm start: a step of 1e-3
-  // leaves an error of order 1e-6 (standardised units), far below the
-  // standard error of b (~1/sqrt(n)).
-  newton(ratio, slip, n, 1e-3, 100);
+  // After the warm start, one single-precision step on the full data (its
+  // ~1e-6 relative error is far below the step's own size), then double
+  // precision until a step is below 1e-3: that leaves an error of order
+  // 1e-6 (standardised units), far below the standard error of b
+  // (~1/sqrt(n)), and H from double-precision sums.
+  if (warm_started) newton(ratio, slip, n, 0.0, 1, /*single=*/true);
+  newton(ratio, slip, n, 1e-3, 100, /*single=*/false);
   // Back to L = 1/(1+exp(-c1 (r - c2))).
   fit.c1 = w(1) / sd_r;
   fit.c2 = std::fabs(w(1)) > 0 ? mean_r - w(0) * sd_r / w(1) : mean_r;

@@ -78,6 +78,43 @@ TEST(LogisticSums, EveryPathMatchesTheFormula) {
               SimdLevelName(LogisticSumsLevel()));
 }
 
+// Single precision (for the first Newton steps): sums within 5e-8 of the
+// formula's, relative to their scale, on every path (the scalar path
+// ignores the flag and stays exact).
+TEST(LogisticSums, SinglePrecisionIsCloseNotExact) {
+  std::mt19937_64 rng(4);
+  std::normal_distribution<double> ratio(0.6, 0.25);
+  std::uniform_int_distribution<int> coin(0, 1);
+  for (std::size_t n : {5u, 17u, 1030u, 40001u}) {
+    std::vector<double> r(n);
+    std::vector<int> y(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      r[i] = ratio(rng);
+      y[i] = coin(rng);
+    }
+    for (const LogisticPoint at : {LogisticPoint{-0.4, 1.3, 0.6, 4.0},
+                                   LogisticPoint{2.0, -25.0, 0.6, 4.0}}) {
+      const LogisticSums want = NaiveSums(r, y, at);
+      for (SimdLevel level :
+           {SimdLevel::kScalar, SimdLevel::kAvx2, SimdLevel::kAvx512}) {
+        const LogisticSums got =
+            CalcLogisticSums(r.data(), y.data(), n, at, level, true);
+        const std::string what = "n " + std::to_string(n) + " " +
+                                 SimdLevelName(LogisticSumsLevel(level));
+        const double scale = static_cast<double>(n) * (1.0 + std::fabs(at.b));
+        const double tol = LogisticSumsLevel(level) == SimdLevel::kScalar
+                               ? 1e-12 * scale
+                               : 5e-8 * scale;
+        EXPECT_NEAR(got.g0, want.g0, tol) << what;
+        EXPECT_NEAR(got.g1, want.g1, tol) << what;
+        EXPECT_NEAR(got.h00, want.h00, tol) << what;
+        EXPECT_NEAR(got.h01, want.h01, tol) << what;
+        EXPECT_NEAR(got.h11, want.h11, tol) << what;
+      }
+    }
+  }
+}
+
 // A broken vector exp would show as a wrong probability: the gradient sum
 // at a = ln(3), b = 0 is n (0.75 - 0.75) for three slips in four.
 TEST(LogisticSums, InterceptOnlyProbability) {

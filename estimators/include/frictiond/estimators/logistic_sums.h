@@ -33,12 +33,16 @@ enum class SimdLevel { kScalar = 0, kAvx2 = 1, kAvx512 = 2 };
 /// widest instruction set up to `max_level` that the CPU has: AVX-512 (8
 /// samples per instruction) or AVX2 + FMA (4) with a polynomial exp
 /// (relative error < 5e-16), else one sample at a time with std::exp. All
-/// agree to rounding.
+/// agree to rounding. With `single_precision`, the vector paths compute
+/// the probabilities in float (twice the lanes; sums of relative error
+/// ~1e-6): for Newton steps far from the optimum, never for the last one
+/// (the scalar path ignores the flag).
 LogisticSums CalcLogisticSums(const double* r,
                               const int* y,
                               std::size_t n,
                               const LogisticPoint& at,
-                              SimdLevel max_level = SimdLevel::kAvx512);
+                              SimdLevel max_level = SimdLevel::kAvx512,
+                              bool single_precision = false);
 
 /// The instruction set CalcLogisticSums(..., max_level) uses here.
 SimdLevel LogisticSumsLevel(SimdLevel max_level = SimdLevel::kAvx512);
