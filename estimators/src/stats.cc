@@ -154,15 +154,16 @@ void SelectMany(std::vector<double>* values,
   }
 }
 
-// Places the order statistics x[order[j]] (order ascending) of doubles
-// without NaN where a full sort would put them, by distribution: a bucket
-// index that is monotone in the value, floor((x - lo) / width) clamped to
-// [0, buckets), with lo and width from the minimum and maximum of an evenly
-// strided sample; one counting pass, one scatter pass, then only the
-// buckets that hold a wanted order statistic are sorted. Values outside
-// the sample's range go to the end buckets. Expected O(n) for any number of
+// Finds the order statistics order[j] (ascending) of doubles without NaN
+// and writes each to x[order[j]] (the rest of x is left as scratch), by
+// distribution: a bucket index that is monotone in the value,
+// floor((x - lo) / width) clamped to [0, buckets), with lo and width from
+// the minimum and maximum of an evenly strided sample; one counting pass,
+// then only the values of buckets that hold a wanted order statistic are
+// gathered, and only those buckets are ordered. Values outside the
+// sample's range go to the end buckets. Expected O(n) for any number of
 // order statistics; a bucket of equal values (quantised data) is not
-// sorted, a bucket of many distinct values costs its own sort.
+// ordered, a large bucket of distinct values costs a selection.
 // Returns false (x untouched) when the sample has no spread.
 bool DistributeOrderStatistics(std::vector<double>* values,
                                const std::vector<std::size_t>& order) {
@@ -179,40 +180,66 @@ bool DistributeOrderStatistics(std::vector<double>* values,
   const double last = static_cast<double>(buckets - 1);
   const double scale = buckets / (hi - lo);
   std::vector<std::uint32_t> bucket(n);
-  std::vector<std::size_t> start(buckets + 1, 0);
+  // Two interleaved counts: runs of equal values (quantised data) would
+  // otherwise increment one counter back to back.
+  std::vector<std::uint32_t> count(2 * buckets, 0);
   for (std::size_t i = 0; i < n; ++i) {
     const double t = std::clamp((x[i] - lo) * scale, 0.0, last);
     bucket[i] = static_cast<std::uint32_t>(t);
-    ++start[bucket[i] + 1];
+    ++count[2 * bucket[i] + (i & 1)];
   }
-  for (std::size_t b = 0; b < buckets; ++b) start[b + 1] += start[b];
-  std::vector<double> placed(n);
-  {
-    std::vector<std::size_t> next(start.begin(), start.end() - 1);
-    for (std::size_t i = 0; i < n; ++i) placed[next[bucket[i]]++] = x[i];
-  }
-  // Each bucket holding wanted order statistics: nothing to do when its
-  // values are all equal (quantised data), a sort when it is small,
-  // multiple selection when it is large (data concentrated in one place).
+  std::vector<std::size_t> start(buckets + 1, 0);
+  for (std::size_t b = 0; b < buckets; ++b)
+    start[b + 1] = start[b] + count[2 * b] + count[2 * b + 1];
+  // The buckets holding wanted order statistics and where their values go.
+  std::vector<std::uint32_t> slot(buckets, 0);  // 0: not wanted
+  struct Wanted {
+    std::size_t bucket, at, first_j, end_j;  // values at picked[at...]
+  };
+  std::vector<Wanted> wanted;
+  std::size_t picked_size = 0;
   for (std::size_t j = 0; j < order.size();) {
     const std::size_t b = static_cast<std::size_t>(
         std::upper_bound(start.begin(), start.end(), order[j]) - start.begin() -
         1);
     std::size_t j_end = j + 1;
     while (j_end < order.size() && order[j_end] < start[b + 1]) ++j_end;
-    const auto first = placed.begin() + start[b];
-    const auto end = placed.begin() + start[b + 1];
-    const auto [min, max] = std::minmax_element(first, end);
-    if (*min != *max) {
-      if (end - first <= 256) {
-        std::sort(first, end);
-      } else {
-        SelectMany(&placed, start[b], start[b + 1], order, j, j_end);
-      }
-    }
+    wanted.push_back({b, picked_size, j, j_end});
+    slot[b] = static_cast<std::uint32_t>(wanted.size());
+    picked_size += start[b + 1] - start[b];
     j = j_end;
   }
-  x.swap(placed);
+  std::vector<double> picked(picked_size);
+  {
+    std::vector<std::size_t> next(wanted.size());
+    for (std::size_t w = 0; w < wanted.size(); ++w) next[w] = wanted[w].at;
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::uint32_t s = slot[bucket[i]];
+      if (s) picked[next[s - 1]++] = x[i];
+    }
+  }
+  // Order each wanted bucket: nothing to do when its values are all equal,
+  // a sort when it is small, multiple selection when it is large (data
+  // concentrated in one place); then copy the wanted ranks out.
+  std::vector<std::size_t> local;
+  for (const Wanted& w : wanted) {
+    const std::size_t size = start[w.bucket + 1] - start[w.bucket];
+    const auto first = picked.begin() + w.at;
+    const auto end = first + size;
+    const auto [min, max] = std::minmax_element(first, end);
+    if (*min != *max) {
+      if (size <= 256) {
+        std::sort(first, end);
+      } else {
+        local.clear();
+        for (std::size_t j = w.first_j; j < w.end_j; ++j)
+          local.push_back(w.at + order[j] - start[w.bucket]);
+        SelectMany(&picked, w.at, w.at + size, local, 0, local.size());
+      }
+    }
+    for (std::size_t j = w.first_j; j < w.end_j; ++j)
+      x[order[j]] = picked[w.at + order[j] - start[w.bucket]];
+  }
   return true;
 }
 

@@ -21,7 +21,8 @@ double FUpperP(double f, double d1, double d2);
 double SortedQuantile(const std::vector<double>& sorted, double p);
 /// The same quantiles as SortedQuantile of sorted(x) at each of `levels`
 /// (ascending, in [0, 1]), found by selection (expected O(n) for a handful
-/// of levels) instead of a sort. `x` is reordered.
+/// of levels) instead of a sort. `x` is scratch space: its contents
+/// afterwards are unspecified.
 std::vector<double> SelectQuantiles(std::vector<double>* x,
                                     const std::vector<double>& levels);
 
