@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <sstream>
 
 #include "frictiond/estimators/stroke_csv.h"
@@ -438,8 +439,26 @@ IngestResult FrictionLibrary::IngestStrokes(const std::string& material,
     }
     if (computable) fit_options.terms = terms;
   }
+  // The family fitters (LuGre, eq. (2), ...) read only the data: they run
+  // on a second thread while eq. (1) is fitted (as IdentifyMaterial does).
+  struct FamilyFit {
+    std::string family;
+    json model;
+    std::string note;
+  };
+  std::future<std::vector<FamilyFit>> families =
+      std::async(std::launch::async, [this, &all, &upload, &previous] {
+        std::vector<FamilyFit> out;
+        for (const auto& [family, fitter] : fitters_) {
+          FamilyFit f{family, nullptr, ""};
+          f.model = fitter(all, upload, previous.get(), &f.note);
+          out.push_back(std::move(f));
+        }
+        return out;
+      });
   StochasticFit fit = FitStochasticModel(all, fit_options);
   if (fit.status != FitStatus::kOk && fit.status != FitStatus::kPartial) {
+    families.wait();  // it reads `all`
     throw RequestError(
         422,
         "v_mm_s",
@@ -458,12 +477,11 @@ IngestResult FrictionLibrary::IngestStrokes(const std::string& material,
     }
   }
   std::string family_notes;
-  for (const auto& [family, fitter] : fitters_) {
-    std::string note;
-    json j = fitter(all, upload, previous.get(), &note);
-    if (!j.is_null()) set.other[family] = j;
-    if (!note.empty()) {
-      family_notes += (family_notes.empty() ? "" : "; ") + family + ": " + note;
+  for (FamilyFit& f : families.get()) {
+    if (!f.model.is_null()) set.other[f.family] = std::move(f.model);
+    if (!f.note.empty()) {
+      family_notes +=
+          (family_notes.empty() ? "" : "; ") + f.family + ": " + f.note;
     }
   }
   StrokeRecord stroke;
