@@ -324,26 +324,32 @@ StochasticFit FitStochasticModel(const StrokeData& input,
   // CalcFitMask).
   const std::size_t n = data.size();
   std::vector<double> mu(n);
-  std::vector<std::size_t> rows;
+  std::vector<std::size_t> rows(n);
   std::vector<int> strokes;
-  std::vector<double> ratio;
-  std::vector<int> slip;
-  rows.reserve(n);
-  ratio.reserve(n);
-  slip.reserve(n);
+  std::vector<double> ratio(n);
+  std::vector<int> slip(n);
+  std::size_t n_rows = 0, n_ratio = 0;
+  int last_stroke = 0;
   for (std::size_t i = 0; i < n; ++i) {
+    // Branch-free: every sample is written, the counts advance only for
+    // the kept ones.
     mu[i] = data.ft_n[i] / data.fn_n[i];
-    if (!(data.fn_n[i] < options.labelling.max_fn_n &&
-          data.v_mm_s[i] < options.labelling.max_v_mm_s))
-      continue;
-    ratio.push_back(mu[i]);
-    slip.push_back(data.slip[i]);
-    if (data.slip[i] == 1) {
-      rows.push_back(i);
-      if (strokes.empty() || strokes.back() != data.stroke[i])
-        strokes.push_back(data.stroke[i]);
+    const bool in_bounds = data.fn_n[i] < options.labelling.max_fn_n &&
+                           data.v_mm_s[i] < options.labelling.max_v_mm_s;
+    ratio[n_ratio] = mu[i];
+    slip[n_ratio] = data.slip[i];
+    n_ratio += in_bounds;
+    const bool fit_row = in_bounds && data.slip[i] == 1;
+    rows[n_rows] = i;
+    n_rows += fit_row;
+    if (fit_row && (n_rows == 1 || last_stroke != data.stroke[i])) {
+      strokes.push_back(data.stroke[i]);
+      last_stroke = data.stroke[i];
     }
   }
+  rows.resize(n_rows);
+  ratio.resize(n_ratio);
+  slip.resize(n_ratio);
   std::sort(strokes.begin(), strokes.end());
   m.samples_total = static_cast<int>(data.size());
   m.samples_slip = static_cast<int>(rows.size());
