@@ -29,32 +29,30 @@ double Cross(const Point& o, const Point& a, const Point& b) {
 void DropInteriorPoints(std::vector<Point>* points) {
   std::vector<Point>& p = *points;
   if (p.size() < 64) return;
-  std::size_t e[8] = {0, 0, 0, 0, 0, 0, 0, 0};
   // Directions in counter-clockwise order: min x, min x+y, min y,
-  // max x-y, max x, max x+y, max y, min x-y.
-  auto key = [](const Point& q, int d) {
-    switch (d) {
-      case 0:
-        return -q.first;
-      case 1:
-        return -(q.first + q.second);
-      case 2:
-        return -q.second;
-      case 3:
-        return q.first - q.second;
-      case 4:
-        return q.first;
-      case 5:
-        return q.first + q.second;
-      case 6:
-        return q.second;
-      default:
-        return q.second - q.first;
-    }
+  // max x-y, max x, max x+y, max y, min x-y (as maxima of 8 keys).
+  auto keys = [](const Point& q, double* k) {
+    const double x = q.first, y = q.second;
+    k[0] = -x;
+    k[1] = -(x + y);
+    k[2] = -y;
+    k[3] = x - y;
+    k[4] = x;
+    k[5] = x + y;
+    k[6] = y;
+    k[7] = y - x;
   };
+  std::size_t e[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  double best[8];
+  keys(p[0], best);
   for (std::size_t i = 1; i < p.size(); ++i) {
+    double k[8];
+    keys(p[i], k);
     for (int d = 0; d < 8; ++d) {
-      if (key(p[i], d) > key(p[e[d]], d)) e[d] = i;
+      if (k[d] > best[d]) {
+        best[d] = k[d];
+        e[d] = i;
+      }
     }
   }
   std::vector<Point> poly;
@@ -63,9 +61,21 @@ void DropInteriorPoints(std::vector<Point>* points) {
   }
   while (poly.size() > 1 && poly.back() == poly.front()) poly.pop_back();
   if (poly.size() < 3) return;
-  auto inside = [&poly](const Point& q) {
-    for (std::size_t j = 0; j < poly.size(); ++j) {
-      if (!(Cross(poly[j], poly[(j + 1) % poly.size()], q) > 0)) return false;
+  // Edges as origin and direction: q is strictly left of every edge.
+  struct Edge {
+    double x, y, dx, dy;
+  };
+  std::vector<Edge> edges;
+  for (std::size_t j = 0; j < poly.size(); ++j) {
+    const Point& a = poly[j];
+    const Point& b = poly[j + 1 < poly.size() ? j + 1 : 0];
+    edges.push_back(
+        {a.first, a.second, b.first - a.first, b.second - a.second});
+  }
+  auto inside = [&edges](const Point& q) {
+    for (const Edge& g : edges) {
+      // Cross(a, b, q) > 0, written out.
+      if (!(g.dx * (q.second - g.y) - g.dy * (q.first - g.x) > 0)) return false;
     }
     return true;
   };
@@ -143,28 +153,57 @@ SpanCoverage CalcSpanCoverage(const std::vector<double>& fn_n,
                                 std::to_string(v_mm_s.size()) + ")");
   SpanCoverage out;
   out.missing = reference;
-  std::vector<std::pair<double, double>> points;
-  points.reserve(fn_n.size());
+  std::vector<std::pair<double, double>> points(fn_n.size());
+  std::size_t kept = 0;
   for (std::size_t i = 0; i < fn_n.size(); ++i) {
-    if (!std::isfinite(fn_n[i]) || !std::isfinite(v_mm_s[i])) continue;
-    points.emplace_back(
-        std::clamp(fn_n[i], reference.fn_min_n, reference.fn_max_n),
-        std::clamp(v_mm_s[i], reference.v_min_mm_s, reference.v_max_mm_s));
+    // Clamped into the reference; branch-free (non-finite ones are written
+    // and then overwritten).
+    points[kept] = {
+        std::min(std::max(fn_n[i], reference.fn_min_n), reference.fn_max_n),
+        std::min(std::max(v_mm_s[i], reference.v_min_mm_s),
+                 reference.v_max_mm_s)};
+    kept += std::isfinite(fn_n[i]) && std::isfinite(v_mm_s[i]);
   }
+  points.resize(kept);
   out.samples = static_cast<int>(points.size());
   if (points.empty()) return out;
+  // Covered extent, with two points per step (a single running min/max
+  // would wait for each comparison before the next).
   SpanRect& c = out.covered;
-  c = {points[0].first, points[0].first, points[0].second, points[0].second};
-  for (const auto& [f, v] : points) {
-    c.fn_min_n = std::min(c.fn_min_n, f);
-    c.fn_max_n = std::max(c.fn_max_n, f);
-    c.v_min_mm_s = std::min(c.v_min_mm_s, v);
-    c.v_max_mm_s = std::max(c.v_max_mm_s, v);
+  SpanRect c2;
+  c = c2 = {
+      points[0].first, points[0].first, points[0].second, points[0].second};
+  std::size_t i = 0;
+  for (; i + 2 <= points.size(); i += 2) {
+    c.fn_min_n = std::min(c.fn_min_n, points[i].first);
+    c.fn_max_n = std::max(c.fn_max_n, points[i].first);
+    c.v_min_mm_s = std::min(c.v_min_mm_s, points[i].second);
+    c.v_max_mm_s = std::max(c.v_max_mm_s, points[i].second);
+    c2.fn_min_n = std::min(c2.fn_min_n, points[i + 1].first);
+    c2.fn_max_n = std::max(c2.fn_max_n, points[i + 1].first);
+    c2.v_min_mm_s = std::min(c2.v_min_mm_s, points[i + 1].second);
+    c2.v_max_mm_s = std::max(c2.v_max_mm_s, points[i + 1].second);
   }
-  out.span_pct = std::clamp(
-      100.0 * CalcConvexHullArea(std::move(points)) / reference.Area(),
-      0.0,
-      100.0);
+  if (i < points.size()) {  // odd count: the last point
+    c.fn_min_n = std::min(c.fn_min_n, points[i].first);
+    c.fn_max_n = std::max(c.fn_max_n, points[i].first);
+    c.v_min_mm_s = std::min(c.v_min_mm_s, points[i].second);
+    c.v_max_mm_s = std::max(c.v_max_mm_s, points[i].second);
+  }
+  c.fn_min_n = std::min(c.fn_min_n, c2.fn_min_n);
+  c.fn_max_n = std::max(c.fn_max_n, c2.fn_max_n);
+  c.v_min_mm_s = std::min(c.v_min_mm_s, c2.v_min_mm_s);
+  c.v_max_mm_s = std::max(c.v_max_mm_s, c2.v_max_mm_s);
+  // No extent on an axis (e.g. a constant load clamped to the reference):
+  // the points lie on one line and the hull has no area.
+  const bool flat =
+      !(c.fn_max_n > c.fn_min_n) || !(c.v_max_mm_s > c.v_min_mm_s);
+  out.span_pct =
+      flat ? 0.0
+           : std::clamp(100.0 * CalcConvexHullArea(std::move(points)) /
+                            reference.Area(),
+                        0.0,
+                        100.0);
   // Missing region: per axis, the larger uncovered end when the covered
   // extent is below half of the reference range.
   auto missing_axis = [](double lo,

@@ -109,6 +109,42 @@ TEST(SpanCoverage, HullEqualsPlainMonotoneChain) {
   }
 }
 
+// The covered extent and the hull percentage against their definitions:
+// odd and even counts, spread and one-line sets, points outside the span.
+TEST(SpanCoverage, CoveredExtentAndPercentMatchDefinitions) {
+  std::mt19937_64 rng(6);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int n : {1, 2, 3, 1000, 1001}) {
+    for (bool one_line : {false, true}) {
+      std::vector<double> fn(n), v(n);
+      std::vector<std::pair<double, double>> clamped;
+      SpanRect want{INFINITY, -INFINITY, INFINITY, -INFINITY};
+      for (int i = 0; i < n; ++i) {
+        fn[i] = one_line ? 5.0 : 5.0 * u(rng);
+        v[i] = 100.0 * u(rng);
+        const double f = std::clamp(fn[i], kPlan.fn_min_n, kPlan.fn_max_n);
+        const double s = std::clamp(v[i], kPlan.v_min_mm_s, kPlan.v_max_mm_s);
+        clamped.emplace_back(f, s);
+        want = {std::min(want.fn_min_n, f),
+                std::max(want.fn_max_n, f),
+                std::min(want.v_min_mm_s, s),
+                std::max(want.v_max_mm_s, s)};
+      }
+      const SpanCoverage c = CalcSpanCoverage(fn, v, kPlan);
+      EXPECT_EQ(c.covered.fn_min_n, want.fn_min_n) << n;
+      EXPECT_EQ(c.covered.fn_max_n, want.fn_max_n) << n;
+      EXPECT_EQ(c.covered.v_min_mm_s, want.v_min_mm_s) << n;
+      EXPECT_EQ(c.covered.v_max_mm_s, want.v_max_mm_s) << n;
+      EXPECT_NEAR(
+          c.span_pct, 100.0 * CalcConvexHullArea(clamped) / kPlan.Area(), 1e-9)
+          << n;
+      if (one_line) {
+        EXPECT_EQ(c.span_pct, 0.0);
+      }
+    }
+  }
+}
+
 TEST(SpanCoverage, FullSweepCoversEverything) {
   const std::vector<double> fn = {0.5, 4.5, 4.5, 0.5, 2.0};
   const std::vector<double> v = {15, 15, 80, 80, 40};
