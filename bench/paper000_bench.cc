@@ -153,9 +153,10 @@ void BenchIdentify(const std::string& python,
     auto time_ms = [&](int threads) {
       options.threads = threads;
       std::vector<double> ms;
-      // Three untimed runs first: the second core may still be slow from
-      // the NumPy process that ran just before (seen here for ~10 runs).
-      for (int k = 0; k < 3; ++k) id = IdentifyMaterial(raw, options);
+      // Ten untimed runs first (~12 ms): the second core may still be slow
+      // from the NumPy process that ran just before (seen here for ~10
+      // runs).
+      for (int k = 0; k < 10; ++k) id = IdentifyMaterial(raw, options);
       for (int k = 0; k < 5; ++k) {
         // A fresh unlabelled copy per run, made before the clock starts
         // (the NumPy side also starts from its arrays in memory).
