@@ -252,37 +252,10 @@ SumsAvx512Float(const double* r,
 }
 #endif
 
-SimdLevel CpuSimdLevel() {
-#if defined(__GNUC__) && defined(__x86_64__)
-  static const SimdLevel level = [] {
-    const bool avx2 =
-        __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-    if (avx2 && __builtin_cpu_supports("avx512f") &&
-        __builtin_cpu_supports("avx512dq"))
-      return SimdLevel::kAvx512;
-    return avx2 ? SimdLevel::kAvx2 : SimdLevel::kScalar;
-  }();
-  return level;
-#else
-  return SimdLevel::kScalar;
-#endif
-}
-
 }  // namespace
 
 SimdLevel LogisticSumsLevel(SimdLevel max_level) {
   return std::min(max_level, CpuSimdLevel());
-}
-
-const char* SimdLevelName(SimdLevel level) {
-  switch (level) {
-    case SimdLevel::kAvx512:
-      return "AVX-512";
-    case SimdLevel::kAvx2:
-      return "AVX2+FMA";
-    default:
-      return "scalar";
-  }
 }
 
 LogisticSums CalcLogisticSums(const double* r,

@@ -7,6 +7,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "frictiond/estimators/simd.h"
 #include "frictiond/estimators/stats.h"
 
 namespace frictiond {
@@ -354,16 +355,6 @@ __attribute__((target("avx2,fma"))) void ShiftedMomentsAvx2(
 }
 #endif
 
-bool CpuHasAvx2() {
-#if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
-  static const bool has_avx2 =
-      __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-  return has_avx2;
-#else
-  return false;
-#endif
-}
-
 void AccumulateShiftedMoments(const MomentBlock& b, bool avx2) {
 #if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
   if (avx2) return ShiftedMomentsAvx2(b);
@@ -374,7 +365,7 @@ void AccumulateShiftedMoments(const MomentBlock& b, bool avx2) {
 }  // namespace
 
 bool OlsUsesAvx2(const OlsOptions& options) {
-  return options.allow_avx2 && CpuHasAvx2();
+  return options.allow_avx2 && CpuSimdLevel() >= SimdLevel::kAvx2;
 }
 
 OlsResult FitOls(const Eigen::Ref<const Eigen::MatrixXd>& X,

@@ -2,6 +2,8 @@
 
 #include <cstddef>
 
+#include "frictiond/estimators/simd.h"
+
 namespace frictiond {
 
 /// Where a Newton (IRLS) step of the logistic fit is taken: the model is
@@ -26,9 +28,6 @@ struct LogisticSums {
   double h11 = 0.0;
 };
 
-/// Instruction sets for the sums, narrowest first.
-enum class SimdLevel { kScalar = 0, kAvx2 = 1, kAvx512 = 2 };
-
 /// The sums over n pairs (y: 0 = stick, anything else = slip), with the
 /// widest instruction set up to `max_level` that the CPU has: AVX-512 (8
 /// samples per instruction) or AVX2 + FMA (4) with a polynomial exp
@@ -46,8 +45,5 @@ LogisticSums CalcLogisticSums(const double* r,
 
 /// The instruction set CalcLogisticSums(..., max_level) uses here.
 SimdLevel LogisticSumsLevel(SimdLevel max_level = SimdLevel::kAvx512);
-
-/// "AVX-512", "AVX2+FMA" or "scalar".
-const char* SimdLevelName(SimdLevel level);
 
 }  // namespace frictiond
