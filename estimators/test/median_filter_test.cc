@@ -110,6 +110,33 @@ TEST(MedianFilter, MedianDtIsTheUpperMedianOfPositiveSteps) {
   }
 }
 
+// Strokes: a new one after each slip episode, and at a gap only when the
+// current one has slipped; a slip vector of the wrong length is refused.
+TEST(MedianFilter, SegmentStrokesAfterEpisodesAndGaps) {
+  StrokeData d;
+  std::vector<int> slip;
+  for (int i = 0; i < 150; ++i) {
+    d.t_s.push_back(i < 100 ? 0.01 * i : 5.0 + 0.01 * i);  // gap before 100
+    d.fn_n.push_back(2.0);
+    d.ft_n.push_back(1.0);
+    d.v_mm_s.push_back(0.0);
+    slip.push_back((i >= 10 && i < 20) || (i >= 40 && i < 50) ||
+                   (i >= 110 && i < 120));
+  }
+  const std::vector<int> stroke = SegmentStrokes(d, slip, 3.0);
+  ASSERT_EQ(stroke.size(), 150u);
+  EXPECT_EQ(stroke[0], 0);
+  EXPECT_EQ(stroke[19], 0);
+  EXPECT_EQ(stroke[20], 1);  // rest after the first episode
+  EXPECT_EQ(stroke[49], 1);
+  EXPECT_EQ(stroke[50], 2);
+  EXPECT_EQ(stroke[100], 2);  // gap, but stroke 2 has not slipped yet
+  EXPECT_EQ(stroke[119], 2);
+  EXPECT_EQ(stroke[120], 3);
+  slip.pop_back();
+  EXPECT_THROW(SegmentStrokes(d, slip, 3.0), std::invalid_argument);
+}
+
 TEST(MedianFilter, RemovesIsolatedSpikes) {
   std::vector<double> v(50, 20.0);
   v[10] = 500.0;
