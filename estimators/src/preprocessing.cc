@@ -43,13 +43,22 @@ bool SlipLabelOptions::IsValid(std::string* why) const {
   return true;
 }
 
-std::vector<double> MedianFilter(const std::vector<double>& x, int kernel) {
-  if (kernel <= 1 || x.size() < 3) return x;
+namespace {
+
+// A NaN has no place in the order a median needs.
+void RejectNan(const std::vector<double>& x, const char* who) {
   for (std::size_t i = 0; i < x.size(); ++i) {
     if (std::isnan(x[i]))
-      throw std::invalid_argument("MedianFilter: x[" + std::to_string(i) +
-                                  "] is NaN");
+      throw std::invalid_argument(std::string(who) + ": x[" +
+                                  std::to_string(i) + "] is NaN");
   }
+}
+
+}  // namespace
+
+std::vector<double> MedianFilter(const std::vector<double>& x, int kernel) {
+  if (kernel <= 1 || x.size() < 3) return x;
+  RejectNan(x, "MedianFilter");
   if (kernel % 2 == 0) ++kernel;
   const int half = kernel / 2;
   const int n = static_cast<int>(x.size());
@@ -65,31 +74,11 @@ std::vector<double> MedianFilter(const std::vector<double>& x, int kernel) {
   auto erase = [&win](double v) {
     win.erase(std::lower_bound(win.begin(), win.end(), v));
   };
-  // Once the window is full, one sample leaves as one enters: the entering
-  // one takes the leaving one's slot and moves to its place in one pass.
-  auto replace = [&win](double leaving, double entering) {
-    auto it = std::lower_bound(win.begin(), win.end(), leaving);
-    if (entering > leaving) {
-      for (auto next = it + 1; next != win.end() && *next < entering; ++next)
-        *it++ = *next;
-    } else {
-      while (it != win.begin() && *(it - 1) > entering) {
-        *it = *(it - 1);
-        --it;
-      }
-    }
-    *it = entering;
-  };
   for (int i = 0; i < n; ++i) {
     const int want_lo = std::max(0, i - half);
     const int want_hi = std::min(n - 1, i + half);
-    if (hi < want_hi && lo < want_lo && want_hi - hi == 1 &&
-        want_lo - lo == 1) {
-      replace(x[lo++], x[++hi]);
-    } else {
-      while (hi < want_hi) insert(x[++hi]);
-      while (lo < want_lo) erase(x[lo++]);
-    }
+    while (hi < want_hi) insert(x[++hi]);
+    while (lo < want_lo) erase(x[lo++]);
     out[i] = win[win.size() / 2];
   }
   return out;
@@ -107,11 +96,7 @@ void MedianAboveEach(const std::vector<double>& x,
                      const double (&t)[K],
                      std::vector<unsigned char> (&out)[K]) {
   const std::size_t n = x.size();
-  for (std::size_t i = 0; i < n; ++i) {
-    if (std::isnan(x[i]))
-      throw std::invalid_argument("median filter input x[" + std::to_string(i) +
-                                  "] is NaN");
-  }
+  RejectNan(x, "CalcMedianAbove");
   for (std::size_t j = 0; j < K; ++j) out[j].assign(n, 0);
   if (kernel <= 1 || n < 3) {
     for (std::size_t j = 0; j < K; ++j)
