@@ -113,16 +113,15 @@ std::vector<std::pair<double, double>> CalcConvexHull(
   p.erase(std::unique(p.begin(), p.end()), p.end());
   const std::size_t n = p.size();
   if (n < 3) return p;
-  const auto cross = Cross;
   // Andrew's monotone chain: lower then upper hull.
   std::vector<Point> hull(2 * n);
   std::size_t k = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    while (k >= 2 && cross(hull[k - 2], hull[k - 1], p[i]) <= 0) --k;
+    while (k >= 2 && Cross(hull[k - 2], hull[k - 1], p[i]) <= 0) --k;
     hull[k++] = p[i];
   }
   for (std::size_t i = n - 1, t = k + 1; i-- > 0;) {
-    while (k >= t && cross(hull[k - 2], hull[k - 1], p[i]) <= 0) --k;
+    while (k >= t && Cross(hull[k - 2], hull[k - 1], p[i]) <= 0) --k;
     hull[k++] = p[i];
   }
   hull.resize(k - 1);
@@ -169,31 +168,24 @@ SpanCoverage CalcSpanCoverage(const std::vector<double>& fn_n,
   if (points.empty()) return out;
   // Covered extent, with two points per step (a single running min/max
   // would wait for each comparison before the next).
+  auto extend = [](SpanRect* r, double fn, double v) {
+    r->fn_min_n = std::min(r->fn_min_n, fn);
+    r->fn_max_n = std::max(r->fn_max_n, fn);
+    r->v_min_mm_s = std::min(r->v_min_mm_s, v);
+    r->v_max_mm_s = std::max(r->v_max_mm_s, v);
+  };
   SpanRect& c = out.covered;
   SpanRect c2;
   c = c2 = {
       points[0].first, points[0].first, points[0].second, points[0].second};
   std::size_t i = 0;
   for (; i + 2 <= points.size(); i += 2) {
-    c.fn_min_n = std::min(c.fn_min_n, points[i].first);
-    c.fn_max_n = std::max(c.fn_max_n, points[i].first);
-    c.v_min_mm_s = std::min(c.v_min_mm_s, points[i].second);
-    c.v_max_mm_s = std::max(c.v_max_mm_s, points[i].second);
-    c2.fn_min_n = std::min(c2.fn_min_n, points[i + 1].first);
-    c2.fn_max_n = std::max(c2.fn_max_n, points[i + 1].first);
-    c2.v_min_mm_s = std::min(c2.v_min_mm_s, points[i + 1].second);
-    c2.v_max_mm_s = std::max(c2.v_max_mm_s, points[i + 1].second);
+    extend(&c, points[i].first, points[i].second);
+    extend(&c2, points[i + 1].first, points[i + 1].second);
   }
-  if (i < points.size()) {  // odd count: the last point
-    c.fn_min_n = std::min(c.fn_min_n, points[i].first);
-    c.fn_max_n = std::max(c.fn_max_n, points[i].first);
-    c.v_min_mm_s = std::min(c.v_min_mm_s, points[i].second);
-    c.v_max_mm_s = std::max(c.v_max_mm_s, points[i].second);
-  }
-  c.fn_min_n = std::min(c.fn_min_n, c2.fn_min_n);
-  c.fn_max_n = std::max(c.fn_max_n, c2.fn_max_n);
-  c.v_min_mm_s = std::min(c.v_min_mm_s, c2.v_min_mm_s);
-  c.v_max_mm_s = std::max(c.v_max_mm_s, c2.v_max_mm_s);
+  if (i < points.size()) extend(&c, points[i].first, points[i].second);
+  extend(&c, c2.fn_min_n, c2.v_min_mm_s);
+  extend(&c, c2.fn_max_n, c2.v_max_mm_s);
   // No extent on an axis (e.g. a constant load clamped to the reference):
   // the points lie on one line and the hull has no area.
   const bool flat =
