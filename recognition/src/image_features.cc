@@ -171,6 +171,23 @@ ImageHeader ReadJpegHeader(std::string_view b) {
   }
 }
 
+/// Histograms are accumulated per quadrant of the image (kQuadrants blocks
+/// of bins, quadrant-major) so that a query can also be described without
+/// one quadrant (partial occlusion) at no extra pixel cost.
+constexpr int kQuadrants = 4;
+
+/// Quadrants left out by each query variant (bit q: quadrant q = 2 * lower +
+/// right): none, each one, then each half.
+constexpr unsigned kVariantExcluded[] = {0u, 1u, 2u, 4u, 8u, 3u, 12u, 5u, 10u};
+/// Variants a query uses: the whole view and the four "all but one
+/// quadrant" views (tuning views: the halves as well raised top-1 from 0.93
+/// to 0.94 but made the open set harder to reject).
+constexpr int kQueryVariants = 5;
+
+inline int Quadrant(int x, int y, int cols, int rows) {
+  return (2 * y >= rows ? 2 : 0) + (2 * x >= cols ? 1 : 0);
+}
+
 bool IsEmpty(const std::vector<double>& hist) {
   return std::all_of(
       hist.begin(), hist.end(), [](double h) { return h == 0.0; });
@@ -186,10 +203,30 @@ void StoreSqrtHistogram(const std::vector<double>& hist, float* out) {
   }
 }
 
-/// Channel means of the pixels that are neither clipped nor dark.
-cv::Vec3d CalcChannelMeans(const cv::Mat& bgr) {
-  cv::Vec3d sum(0, 0, 0);
-  double count = 0;
+/// Channel sums and counts of the pixels that are neither clipped nor dark,
+/// per quadrant.
+struct ChannelSums {
+  cv::Vec3d sum[kQuadrants];
+  double count[kQuadrants] = {};
+
+  /// Channel means over the quadrants not in the bit mask `excluded`.
+  cv::Vec3d Means(unsigned excluded) const {
+    cv::Vec3d total(0, 0, 0);
+    double n = 0;
+    for (int q = 0; q < kQuadrants; ++q) {
+      if ((excluded >> q) & 1u) continue;
+      total += sum[q];
+      n += count[q];
+    }
+    if (n == 0) return cv::Vec3d(1, 1, 1);
+    return cv::Vec3d(std::max(1.0, total[0] / n),
+                     std::max(1.0, total[1] / n),
+                     std::max(1.0, total[2] / n));
+  }
+};
+
+ChannelSums CalcChannelSums(const cv::Mat& bgr) {
+  ChannelSums sums;
   for (int y = 0; y < bgr.rows; ++y) {
     const cv::Vec3b* row = bgr.ptr<cv::Vec3b>(y);
     for (int x = 0; x < bgr.cols; ++x) {
@@ -198,14 +235,12 @@ cv::Vec3d CalcChannelMeans(const cv::Mat& bgr) {
           p[0] + p[1] + p[2] < kMinChannelSum) {
         continue;
       }
-      sum += cv::Vec3d(p[0], p[1], p[2]);
-      ++count;
+      const int q = Quadrant(x, y, bgr.cols, bgr.rows);
+      sums.sum[q] += cv::Vec3d(p[0], p[1], p[2]);
+      sums.count[q] += 1;
     }
   }
-  if (count == 0) return cv::Vec3d(1, 1, 1);
-  return cv::Vec3d(std::max(1.0, sum[0] / count),
-                   std::max(1.0, sum[1] / count),
-                   std::max(1.0, sum[2] / count));
+  return sums;
 }
 
 /// Grey-world chromaticity histogram (colour constancy under a diagonal
@@ -216,7 +251,7 @@ cv::Vec3d CalcChannelMeans(const cv::Mat& bgr) {
 /// within the material, not its mean colour.
 std::vector<double> CalcChromaticityHistogram(const cv::Mat& bgr,
                                               const cv::Vec3d& means) {
-  std::vector<double> hist(kChromaBins * kChromaBins, 0.0);
+  std::vector<double> all(kQuadrants * kChromaBins * kChromaBins, 0.0);
   const double inv[3] = {1.0 / means[0], 1.0 / means[1], 1.0 / means[2]};
   const double lo = 1.0 / 3.0 - kChromaHalfRange;
   const double scale = kChromaBins / (2.0 * kChromaHalfRange);
@@ -234,6 +269,8 @@ std::vector<double> CalcChromaticityHistogram(const cv::Mat& bgr,
           p[0] + p[1] + p[2] < kMinChannelSum) {
         continue;
       }
+      double* hist = all.data() + Quadrant(x, y, bgr.cols, bgr.rows) *
+                                      kChromaBins * kChromaBins;
       const double blue = p[0] * inv[0];
       const double green = p[1] * inv[1];
       const double red = p[2] * inv[2];
@@ -248,10 +285,7 @@ std::vector<double> CalcChromaticityHistogram(const cv::Mat& bgr,
       hist[(r0 + 1) * kChromaBins + b0 + 1] += rf * bf;
     }
   }
-  if (IsEmpty(hist)) {
-    hist[(kChromaBins / 2) * kChromaBins + kChromaBins / 2] = 1.0;
-  }
-  return hist;
+  return all;
 }
 
 /// Histogram of g / local mean (g is already normalised so that the local
@@ -259,13 +293,15 @@ std::vector<double> CalcChromaticityHistogram(const cv::Mat& bgr,
 /// non-zero) are left out.
 std::vector<double> CalcRelativeIntensityHistogram(const cv::Mat1f& grey,
                                                    const cv::Mat1b& clipped) {
-  std::vector<double> hist(kIntensityBins, 0.0);
+  std::vector<double> all(kQuadrants * kIntensityBins, 0.0);
   const float scale = kIntensityBins / (kMaxRelative * 128.0f);
   for (int y = 0; y < grey.rows; ++y) {
     const float* row = grey[y];
     const unsigned char* mask = clipped[y];
     for (int x = 0; x < grey.cols; ++x) {
       if (mask[x]) continue;
+      double* hist =
+          all.data() + Quadrant(x, y, grey.cols, grey.rows) * kIntensityBins;
       const float position =
           std::min(row[x] * scale - 0.5f, kIntensityBins - 1.0f);
       if (position <= 0.0f) {
@@ -278,8 +314,7 @@ std::vector<double> CalcRelativeIntensityHistogram(const cv::Mat1f& grey,
       if (b0 + 1 < kIntensityBins) hist[b0 + 1] += frac;
     }
   }
-  if (IsEmpty(hist)) hist.back() = 1.0;  // all clipped: bright
-  return hist;
+  return all;
 }
 
 /// Rotation-invariant uniform LBP (Ojala et al. 2002, LBP^riu2_{P,R}) with
@@ -289,7 +324,7 @@ std::vector<double> CalcRelativeIntensityHistogram(const cv::Mat1f& grey,
 std::vector<double> CalcLbpHistogram(const cv::Mat1f& grey,
                                      const cv::Mat1b& clipped,
                                      double radius) {
-  std::vector<double> hist(kLbpBins, 0.0);
+  std::vector<double> all(kQuadrants * kLbpBins, 0.0);
   struct Sample {
     int dx0, dy0;
     float w00, w01, w10, w11;
@@ -333,11 +368,10 @@ std::vector<double> CalcLbpHistogram(const cv::Mat1f& grey,
           transitions <= 2
               ? static_cast<int>(std::bitset<kLbpSamples>(bits).count())
               : kLbpSamples + 1;
-      hist[code] += 1.0;
+      all[Quadrant(x, y, grey.cols, grey.rows) * kLbpBins + code] += 1.0;
     }
   }
-  if (IsEmpty(hist)) hist[0] = 1.0;  // all clipped: flat
-  return hist;
+  return all;
 }
 
 struct LbpScale {
@@ -345,7 +379,7 @@ struct LbpScale {
   double radius;
 };
 constexpr LbpScale kLbpScales[] = {
-    {0, 1.0}, {0, 2.0}, {0, 3.0}, {1, 1.0}, {1, 2.0}};
+    {0, 1.0}, {0, 2.0}, {0, 3.0}, {1, 1.0}, {1, 2.0}, {2, 1.0}, {2, 2.0}};
 
 }  // namespace
 
@@ -424,9 +458,15 @@ const std::vector<FeatureBlock>& FeatureLayout() {
         {"lbp_l0_r3", kLbpBins, 0.12, true},
         {"lbp_l1_r1", kLbpBins, 0.12, true},
         {"lbp_l1_r2", kLbpBins, 0.12, true},
+        {"lbp_l2_r1", kLbpBins, 0.12, true},
+        {"lbp_l2_r2", kLbpBins, 0.12, true},
         {"relative_intensity", kIntensityBins, 0.12, true},
         {"mean_log_chromaticity", 2, 0.10, false},
     };
+    // Relative weights above; normalised to sum 1.
+    double total = 0.0;
+    for (const FeatureBlock& b : l) total += b.weight;
+    for (FeatureBlock& b : l) b.weight /= total;
     return l;
   }();
   return layout;
@@ -441,11 +481,15 @@ std::size_t ScaleFeatureSize() {
   return n;
 }
 
-std::size_t FeatureSize() { return ScaleFeatureSize() * kScales; }
+std::size_t FeatureSize() {
+  return ScaleFeatureSize() * (kScales + kQueryVariants - 1);
+}
 
 int ScaleCount() { return kScales; }
 
 int UnitScaleIndex() { return kUnitScale; }
+
+int QueryVariantCount() { return kQueryVariants; }
 
 namespace {
 
@@ -456,6 +500,7 @@ namespace {
 /// shrunk (fewer pixels, the same histograms).
 void ComputeScaleFeatures(const cv::Mat& bgr,
                           double magnification,
+                          int variants,
                           float* out) {
   // 1. Working size: shorter side kWorkingSide, longer side capped.
   const double base =
@@ -481,11 +526,25 @@ void ComputeScaleFeatures(const cv::Mat& bgr,
   }
 
   const std::vector<FeatureBlock>& layout = FeatureLayout();
+  const std::size_t per_scale = ScaleFeatureSize();
   std::size_t block = 0;
-  auto store = [&](const std::vector<double>& hist) {
-    CV_Assert(static_cast<int>(hist.size()) == layout[block].size);
-    StoreSqrtHistogram(hist, out);
-    out += layout[block].size;
+  std::size_t offset = 0;  // of the block within a variant
+  // Variant 0: every quadrant; variant v > 0: all but quadrant v - 1.
+  // `empty_bin` takes the whole mass when no pixel counted.
+  auto store = [&](const std::vector<double>& per_quadrant, int empty_bin) {
+    const int bins = layout[block].size;
+    CV_Assert(static_cast<int>(per_quadrant.size()) == kQuadrants * bins);
+    std::vector<double> hist(bins);
+    for (int v = 0; v < variants; ++v) {
+      std::fill(hist.begin(), hist.end(), 0.0);
+      for (int q = 0; q < kQuadrants; ++q) {
+        if ((kVariantExcluded[v] >> q) & 1u) continue;
+        for (int i = 0; i < bins; ++i) hist[i] += per_quadrant[q * bins + i];
+      }
+      if (IsEmpty(hist)) hist[empty_bin] = 1.0;
+      StoreSqrtHistogram(hist, out + v * per_scale + offset);
+    }
+    offset += bins;
     ++block;
   };
 
@@ -494,14 +553,15 @@ void ComputeScaleFeatures(const cv::Mat& bgr,
   // top-1 0.87 / 0.90 / 0.93 / 0.89).
   cv::GaussianBlur(work, work, cv::Size(0, 0), kSmoothingSigma);
   // 2. Colour, invariant to the light's colour (grey world).
-  const cv::Vec3d means = CalcChannelMeans(work);
-  store(CalcChromaticityHistogram(work, means));
+  const ChannelSums sums = CalcChannelSums(work);
+  store(CalcChromaticityHistogram(work, sums.Means(0u)),
+        (kChromaBins / 2) * kChromaBins + kChromaBins / 2);
 
   // 3. Grey, divided by the local light level (intensity and falloff
   // removed), local mean 128.
   cv::Mat grey8;
   cv::cvtColor(work, grey8, cv::COLOR_BGR2GRAY);
-  const cv::Mat1b clipped = grey8 >= kClipGrey;
+  cv::Mat1b clipped = grey8 >= kClipGrey;
   cv::Mat1f grey;
   grey8.convertTo(grey, CV_32F);
   cv::Mat1f light;
@@ -517,19 +577,31 @@ void ComputeScaleFeatures(const cv::Mat& bgr,
   cv::Mat1b half_clipped;
   cv::resize(grey, half, cv::Size(), 0.5, 0.5, cv::INTER_AREA);
   cv::resize(clipped, half_clipped, half.size(), 0, 0, cv::INTER_NEAREST);
+  cv::Mat1f quarter;
+  cv::Mat1b quarter_clipped;
+  cv::resize(half, quarter, cv::Size(), 0.5, 0.5, cv::INTER_AREA);
+  cv::resize(clipped, quarter_clipped, quarter.size(), 0, 0, cv::INTER_NEAREST);
 
   // 4. Texture.
   for (const LbpScale& s : kLbpScales) {
-    store(s.level == 0 ? CalcLbpHistogram(grey, clipped, s.radius)
-                       : CalcLbpHistogram(half, half_clipped, s.radius));
+    store(s.level == 0   ? CalcLbpHistogram(grey, clipped, s.radius)
+          : s.level == 1 ? CalcLbpHistogram(half, half_clipped, s.radius)
+                         : CalcLbpHistogram(quarter, quarter_clipped, s.radius),
+          0);  // all clipped: flat
   }
 
   // 5. Contrast shape.
-  store(CalcRelativeIntensityHistogram(grey, clipped));
+  store(CalcRelativeIntensityHistogram(grey, clipped),
+        kIntensityBins - 1);  // all clipped: bright
 
   // 6. Mean colour as log chromaticities (compared with a tolerance).
-  out[0] = static_cast<float>(std::log(means[2] / means[1]));
-  out[1] = static_cast<float>(std::log(means[0] / means[1]));
+  for (int v = 0; v < variants; ++v) {
+    const cv::Vec3d means = sums.Means(kVariantExcluded[v]);
+    out[v * per_scale + offset] =
+        static_cast<float>(std::log(means[2] / means[1]));
+    out[v * per_scale + offset + 1] =
+        static_cast<float>(std::log(means[0] / means[1]));
+  }
   ++block;
   CV_Assert(block == layout.size());
 }
@@ -538,18 +610,24 @@ void ComputeScaleFeatures(const cv::Mat& bgr,
 
 std::vector<float> ComputeFeatures(const cv::Mat& bgr) {
   CV_Assert(bgr.type() == CV_8UC3 && !bgr.empty());
-  std::vector<float> features(ScaleFeatureSize());
-  ComputeScaleFeatures(bgr, 1.0, features.data());
+  std::vector<float> features(ScaleFeatureSize() * QueryVariantCount());
+  ComputeScaleFeatures(bgr, 1.0, QueryVariantCount(), features.data());
   return features;
 }
 
 std::vector<float> ComputeReferenceFeatures(const cv::Mat& bgr) {
   CV_Assert(bgr.type() == CV_8UC3 && !bgr.empty());
   std::vector<float> features(FeatureSize());
+  const std::size_t n = ScaleFeatureSize();
   for (int k = 0; k < kScales; ++k) {
-    ComputeScaleFeatures(
-        bgr, kMagnifications[k], features.data() + k * ScaleFeatureSize());
+    if (k == kUnitScale) continue;
+    ComputeScaleFeatures(bgr, kMagnifications[k], 1, features.data() + k * n);
   }
+  // Magnification 1: the whole view at kUnitScale, the other query variants
+  // after the pyramid (so that RecognizeFeatures matches like Recognize).
+  const std::vector<float> query = ComputeFeatures(bgr);
+  std::copy_n(query.begin(), n, features.begin() + kUnitScale * n);
+  std::copy(query.begin() + n, query.end(), features.begin() + kScales * n);
   return features;
 }
 
@@ -568,7 +646,7 @@ void CheckFeatures(const std::vector<float>& features) {
     }
   }
   std::size_t at = 0;
-  for (int k = 0; k < kScales; ++k) {
+  for (int k = 0; k < kScales + kQueryVariants - 1; ++k) {
     for (const FeatureBlock& b : FeatureLayout()) {
       if (!b.histogram) {
         for (int i = 0; i < b.size; ++i) {
@@ -607,14 +685,16 @@ double CalcSimilarity(const float* a, const float* b) {
   double score = 1.0;
   for (const FeatureBlock& block : FeatureLayout()) {
     if (block.histogram) {
-      // H^2 = 1 - BC = sum (a_i - b_i)^2 / 2 for unit-norm sqrt histograms;
-      // the difference form is exact (0) for identical vectors.
-      double sum2 = 0.0;
+      // Histogram intersection (Swain and Ballard 1991) of the histograms
+      // h = a^2: D = 1 - sum min(h_a, h_b). Extra mass in one histogram (an
+      // occluder) costs only its own share, where the Hellinger distance
+      // grows with its square root (tuning views: accepted and right at 3 %
+      // false accepts 0.71 against 0.65).
+      double intersection = 0.0;
       for (int i = 0; i < block.size; ++i) {
-        const double d = double{a[i]} - double{b[i]};
-        sum2 += d * d;
+        intersection += std::min(double{a[i]} * a[i], double{b[i]} * b[i]);
       }
-      score -= block.weight * std::sqrt(std::min(1.0, 0.5 * sum2));
+      score -= block.weight * std::clamp(1.0 - intersection, 0.0, 1.0);
     } else {
       // Mean log chromaticities: free within the light-colour tolerance.
       const double distance =

@@ -45,7 +45,7 @@ struct FeatureBlock {
   bool histogram;  ///< false: mean log chromaticities
 };
 
-/// The layout of one scale: grey-world chromaticity, LBP riu2 at 5 (scale,
+/// The layout of one scale: grey-world chromaticity, LBP riu2 at 7 (scale,
 /// radius) pairs, relative intensity, mean log chromaticity.
 const std::vector<FeatureBlock>& FeatureLayout();
 
@@ -55,16 +55,23 @@ std::size_t ScaleFeatureSize();
 int ScaleCount();
 /// Index of magnification 1 in a reference vector.
 int UnitScaleIndex();
-/// Total number of floats of a reference vector (ScaleCount() scales).
+/// Total number of floats of a reference vector: ScaleCount() scales, then
+/// the QueryVariantCount() - 1 partial views at magnification 1.
 std::size_t FeatureSize();
 
-/// Query features of a decoded 8-bit BGR image of any size: one scale
-/// (ScaleFeatureSize() floats), magnification 1.
+/// Number of descriptions of a query: the whole view, then the view without
+/// each of its four quadrants (partial occlusion).
+int QueryVariantCount();
+
+/// Query features of a decoded 8-bit BGR image of any size at magnification
+/// 1: QueryVariantCount() single-scale vectors (ScaleFeatureSize() floats
+/// each), the whole view first.
 std::vector<float> ComputeFeatures(const cv::Mat& bgr);
 
 /// Reference features: ScaleCount() scales, the image as a camera at
-/// magnifications 0.5 .. 2 (steps of 2^(1/4)) would see it; scale
-/// UnitScaleIndex() equals ComputeFeatures(bgr).
+/// magnifications 0.5 .. 2 (steps of 2^(1/4)) would see it (scale
+/// UnitScaleIndex() is the whole view of ComputeFeatures(bgr)), then the
+/// other variants of ComputeFeatures(bgr).
 std::vector<float> ComputeReferenceFeatures(const cv::Mat& bgr);
 
 /// Validates a reference vector given by a caller (size, finite, histogram
@@ -73,9 +80,9 @@ std::vector<float> ComputeReferenceFeatures(const cv::Mat& bgr);
 void CheckFeatures(const std::vector<float>& features);
 
 /// Similarity of two single-scale vectors, in [0, 1]:
-/// score = 1 - sum_b w_b * D_b, with D_b the Hellinger distance
-/// H_b = sqrt(1 - BC_b) = ||a_b - b_b|| / sqrt(2) for histogram blocks, and
-/// for the mean colour clamp((|d log chroma| - tolerance) / range, 0, 1).
+/// score = 1 - sum_b w_b * D_b, with D_b = 1 - sum_i min(h_a,i, h_b,i) the
+/// histogram intersection distance of the histograms h = (stored value)^2,
+/// and for the mean colour clamp((|d log chroma| - tolerance) / range, 0, 1).
 double CalcSimilarity(const float* a, const float* b);
 
 }  // namespace internal

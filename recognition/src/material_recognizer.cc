@@ -68,8 +68,10 @@ class RecognizerImpl {
     features_.clear();
   }
 
-  /// `query` holds one scale (ScaleFeatureSize() floats).
-  RecognitionResult Recognize(const float* query) const {
+  /// `query` holds `variants` single-scale vectors (ScaleFeatureSize()
+  /// floats each); a reference's similarity is the best over the variants
+  /// and the reference's scales.
+  RecognitionResult Recognize(const float* query, int variants) const {
     std::vector<RecognitionCandidate> best;
     {
       std::shared_lock lock(mutex_);
@@ -80,9 +82,12 @@ class RecognizerImpl {
       for (std::size_t i = 0; i < materials_.size(); ++i) {
         double similarity = 0.0;
         const float* reference = &features_[i * n];
-        for (int k = 0; k < scales; ++k) {
-          similarity = std::max(
-              similarity, CalcSimilarity(query, reference + k * per_scale));
+        for (int v = 0; v < variants; ++v) {
+          for (int k = 0; k < scales; ++k) {
+            similarity = std::max(similarity,
+                                  CalcSimilarity(query + v * per_scale,
+                                                 reference + k * per_scale));
+          }
         }
         const auto [it, inserted] = index.emplace(materials_[i], best.size());
         if (inserted) {
@@ -253,14 +258,23 @@ void MaterialRecognizer::Clear() { impl_->Clear(); }
 
 RecognitionResult MaterialRecognizer::Recognize(
     std::string_view encoded_image) const {
-  return impl_->Recognize(DecodeAndExtractQuery(encoded_image).data());
+  return impl_->Recognize(DecodeAndExtractQuery(encoded_image).data(),
+                          internal::QueryVariantCount());
 }
 
 RecognitionResult MaterialRecognizer::RecognizeFeatures(
     const std::vector<float>& features) const {
   internal::CheckFeatures(features);
-  return impl_->Recognize(features.data() + internal::UnitScaleIndex() *
-                                                internal::ScaleFeatureSize());
+  // The query variants: the whole view (unit scale), then the partial views
+  // stored after the pyramid.
+  const std::size_t n = internal::ScaleFeatureSize();
+  const std::size_t unit = internal::UnitScaleIndex() * n;
+  std::vector<float> query(features.begin() + unit,
+                           features.begin() + unit + n);
+  query.insert(query.end(),
+               features.begin() + internal::ScaleCount() * n,
+               features.end());
+  return impl_->Recognize(query.data(), internal::QueryVariantCount());
 }
 
 std::size_t MaterialRecognizer::reference_count() const {

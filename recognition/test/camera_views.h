@@ -294,7 +294,8 @@ struct Outcome {
   bool top1 = false;      ///< best candidate is the true material
   bool accepted = false;  ///< not unknown
   double top_similarity = 0.0;
-  double second_similarity = 0.0;  ///< of the second material
+  double second_similarity = 0.0;    ///< of the second material
+  std::vector<double> similarities;  ///< of every candidate, best first
   double top_score = 0.0;
   std::string truth, answer;
 };
@@ -324,6 +325,8 @@ inline std::vector<Outcome> Evaluate(const MaterialRecognizer& recognizer,
           o.top_score = r.candidates.front().score;
           if (r.candidates.size() > 1)
             o.second_similarity = r.candidates[1].similarity;
+          for (const RecognitionCandidate& c : r.candidates)
+            o.similarities.push_back(c.similarity);
         }
         o.top1 = o.known && o.answer == name;
         o.accepted = !r.unknown;

@@ -11,7 +11,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <random>
+#include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -70,6 +72,7 @@ TEST(RecognitionCalibrationTest, ConstantsComeFromTheTuningViews) {
   // Raw similarities: the operating point 0 accepts everything.
   RecognizerOptions raw;
   raw.unknown_threshold = 0.0;
+  raw.max_candidates = 100;
   MaterialRecognizer recognizer(raw);
   const MaterialSplit split = TuningSplit();
   RegisterLibrary(&recognizer, split.known, 2, &rng);
@@ -107,6 +110,37 @@ TEST(RecognitionCalibrationTest, ConstantsComeFromTheTuningViews) {
       t_evidence,
       kTargetFalseAccept);
 
+  {
+    // Open-set views accepted at the operating point, by material.
+    std::map<std::string, int> accepted;
+    for (const Outcome& o : outcomes) {
+      if (!o.known && Evidence(o) >= t_evidence) {
+        ++accepted[o.truth + " -> " + o.answer];
+      }
+    }
+    for (const auto& [pair, n] : accepted) {
+      std::printf("  open set accepted: %s x%d\n", pair.c_str(), n);
+    }
+    // Accepted and right per change at the operating point.
+    for (int c = 0; c < kChangeCount; ++c) {
+      int with = 0, with_right = 0, without = 0, without_right = 0;
+      for (const Outcome& o : outcomes) {
+        if (!o.known) continue;
+        const bool ok = o.top1 && Evidence(o) >= t_evidence;
+        if ((o.changes >> c) & 1u) {
+          ++with;
+          with_right += ok;
+        } else {
+          ++without;
+          without_right += ok;
+        }
+      }
+      std::printf("  accepted and right with %s: %.3f (without: %.3f)\n",
+                  ChangeName(c),
+                  double(with_right) / with,
+                  double(without_right) / without);
+    }
+  }
   // ROC over the tuning views (score thresholds).
   std::printf(
       "| score threshold | accepted and right | false accepts |\n"

@@ -14,12 +14,16 @@
 ///   - light intensity and falloff: grey divided by a wide Gaussian estimate
 ///     of the local light level before any texture histogram;
 ///   - in-plane rotation: rotation-invariant uniform LBP (riu2, 8 samples) at
-///     radii 1, 2, 3 on the working image and 1, 2 at half resolution;
+///     radii 1, 2, 3 on the working image and 1, 2 at half and quarter
+///     resolution;
 ///   - distance: every reference is described at nine magnifications
-///     (0.5 .. 2, steps of 2^(1/4)), and a query is compared with each.
-/// Each histogram is compared with the Hellinger distance; the similarity of
+///     (0.5 .. 2, steps of 2^(1/4)), and a query is compared with each;
+///   - partial occlusion: a query is also described without each of its
+///     four quadrants, and the best of these descriptions counts.
+/// Each histogram is compared by histogram intersection; the similarity of
 /// two images is in [0, 1] (1 = identical histograms) and a material's
-/// similarity is the best over its references and their scales.
+/// similarity is the best over its references, their scales and the query's
+/// descriptions.
 /// The reported score is a calibrated probability that the material is the
 /// right one (logistic (Platt) fit of the similarity on held-out tuning
 /// views, docs/recognition.md); a query is accepted when the best score
@@ -88,12 +92,12 @@ struct RecognitionResult {
 struct RecognizerOptions {
   /// Slope of the score calibration [1/similarity] (Platt scaling), fitted on
   /// the tuning views of recognition/test/recognition_calibration_test.cc.
-  static constexpr double kCalibrationSlope = 23.08;
+  static constexpr double kCalibrationSlope = 31.93;
   /// Similarity at which the calibrated score is 0.5.
-  static constexpr double kCalibrationMidpoint = 0.9081;
+  static constexpr double kCalibrationMidpoint = 0.9306;
   /// Default operating point: the calibrated score at which at most 3 % of
   /// the tuning views of materials not in the library were accepted.
-  static constexpr double kDefaultOperatingPoint = 0.84;
+  static constexpr double kDefaultOperatingPoint = 0.81;
 
   /// The operating point: a query whose best calibrated score is below this
   /// is unknown. Must be in [0, 1].
