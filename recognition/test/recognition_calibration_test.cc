@@ -121,6 +121,14 @@ TEST(RecognitionCalibrationTest, ConstantsComeFromTheTuningViews) {
     for (const auto& [pair, n] : accepted) {
       std::printf("  open set accepted: %s x%d\n", pair.c_str(), n);
     }
+    int known = 0, right = 0;
+    for (const Outcome& o : outcomes) {
+      if (!o.known) continue;
+      ++known;
+      right += o.top1 && Evidence(o) >= t_evidence;
+    }
+    std::printf("  accepted and right at the operating point: %.3f\n",
+                double(right) / known);
     // Accepted and right per change at the operating point.
     for (int c = 0; c < kChangeCount; ++c) {
       int with = 0, with_right = 0, without = 0, without_right = 0;

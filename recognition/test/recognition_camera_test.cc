@@ -60,6 +60,27 @@ TEST(RecognitionCameraTest, HeldOutMaterialsUnderRandomCameraChanges) {
     brier += std::pow(o.top_score - (o.top1 ? 1.0 : 0.0), 2);
   }
   brier /= outcomes.size();
+  // ROC on the held-out views (reported only; the operating point was
+  // chosen on the tuning views).
+  std::printf(
+      "| score threshold | accepted and right | false accepts |\n"
+      "|---|---|---|\n");
+  for (double p : {0.05, 0.2, 0.4, 0.5, 0.6, 0.7, 0.81, 0.9, 0.95}) {
+    int known = 0, right = 0, unknown = 0, accepted = 0;
+    for (const Outcome& o : outcomes) {
+      if (o.known) {
+        ++known;
+        right += o.top1 && o.top_score >= p;
+      } else {
+        ++unknown;
+        accepted += o.top_score >= p;
+      }
+    }
+    std::printf("| %.2f | %.3f | %.3f |\n",
+                p,
+                double(right) / known,
+                double(accepted) / unknown);
+  }
   const Rates all = CalcRates(outcomes, -1);
   std::printf(
       "test: %d known views, %d open-set views; top-1 %.3f, accepted "
