@@ -68,19 +68,28 @@ RecognizeImageFn RegisterRecognitionRoutes(HttpServer& http,
   int stale = 0;
   for (const ImageRecord& img : lib.store().ListImages()) {
     std::vector<float> f;
+    bool used = false;
     if (DecodeFeatures(img.features, &f)) {
-      recognizer->AddReferenceFeatures(img.material, std::move(f));
-    } else {
-      ++stale;  // features of another extractor version: re-register those
+      try {
+        recognizer->AddReferenceFeatures(img.material, std::move(f));
+        used = true;
+      } catch (const std::invalid_argument& e) {
+        std::cerr << "frictiond: recognition: stored image " << img.id
+                  << " of '" << img.material << "' skipped: " << e.what()
+                  << "\n";
+      }
+    }
+    if (!used) {
+      ++stale;  // another extractor version or invalid: re-register those
                 // images
     }
   }
   if (stale > 0) {
     std::cerr << "frictiond: recognition: " << stale
-              << " stored reference image(s) have features of another "
-                 "version (now v"
+              << " stored reference image(s) have unusable features (another "
+                 "feature version (now v"
               << MaterialRecognizer::kFeatureVersion
-              << ") and are not used; upload them again with POST "
+              << ") or invalid) and are not used; upload them again with POST "
                  "/v1/materials/{id}/images\n";
   }
   http.Route("POST",
