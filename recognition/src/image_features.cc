@@ -22,18 +22,27 @@ constexpr int kWorkingSide = 128;
 /// The longer side is capped at this multiple of kWorkingSide.
 constexpr int kMaxAspect = 2;
 
-constexpr int kHueBins = 12;
-constexpr int kSaturationBins = 3;
-/// Pixels below this saturation (0-255) or value have no reliable hue; they
-/// go to a single "grey" bin.
-constexpr int kMinSaturation = 26;
-constexpr int kMinValue = 20;
+/// Grey-world chromaticity histogram: r = R'/(R'+G'+B') and b = B'/(...)
+/// after dividing each channel by its mean, kChromaBins soft bins each over
+/// 1/3 +- kChromaHalfRange.
+constexpr int kChromaBins = 8;
+constexpr double kChromaHalfRange = 0.15;
+/// Pixels whose channel sum is below this (0-765) carry no reliable colour.
+constexpr double kMinChannelSum = 30.0;
+
+/// Mean-colour check: the log chromaticities log(R/G), log(B/G) of the
+/// channel means may differ by up to kColourTolerance between reference and
+/// query without penalty (a lamp change is a diagonal (von Kries) gain of
+/// bounded size: warm or cool light moves them by up to ~0.3); the penalty
+/// then grows linearly and saturates kColourRange further on.
+constexpr double kColourTolerance = 0.35;
+constexpr double kColourRange = 0.5;
 
 constexpr int kLbpSamples = 8;
 constexpr int kLbpBins = kLbpSamples + 2;  // riu2: 0..P uniform, P+1 other
 /// A neighbour counts as brighter when g_p >= g_c + kLbpTau, in units where
-/// the image median is 128 (so the tolerance scales with brightness).
-constexpr float kLbpTau = 1.0f;
+/// the local mean is 128 (so the tolerance scales with the light).
+constexpr float kLbpTau = 4.0f;
 
 /// Grey levels at or above this (0-255) are treated as clipped by the
 /// sensor: their texture is lost, so they are left out of the LBP and
@@ -41,9 +50,25 @@ constexpr float kLbpTau = 1.0f;
 /// less).
 constexpr float kClipGrey = 250.0f;
 
+/// Illumination estimate: a Gaussian of this sigma [working px]. Dividing by
+/// it removes light that varies slowly across the view (falloff, vignetting)
+/// as well as the overall intensity.
+constexpr double kIlluminationSigma = 24.0;
+
+/// Gaussian smoothing of the working image [px] before any histogram.
+constexpr double kSmoothingSigma = 1.5;
+
 constexpr int kIntensityBins = 16;
-/// Relative intensity g / median(g) is histogrammed over [0, kMaxRelative).
+/// Relative intensity g / local mean is histogrammed over [0, kMaxRelative).
 constexpr float kMaxRelative = 2.5f;
+
+/// Magnifications of the reference pyramid: a reference is also described
+/// as a camera 2^(k/4) times nearer (k > 0) or farther (k < 0) would see it,
+/// so that a query at another distance meets a reference at its own scale.
+constexpr double kMagnifications[] = {
+    0.5, 0.5946, 0.7071, 0.8409, 1.0, 1.1892, 1.4142, 1.6818, 2.0};
+constexpr int kScales = sizeof(kMagnifications) / sizeof(kMagnifications[0]);
+constexpr int kUnitScale = 4;  ///< index of magnification 1
 
 [[noreturn]] void ThrowImage(const std::string& what) {
   throw std::invalid_argument("image: " + what);
@@ -146,25 +171,26 @@ ImageHeader ReadJpegHeader(std::string_view b) {
   }
 }
 
+/// Histograms are accumulated per quadrant of the image (kQuadrants blocks
+/// of bins, quadrant-major) so that a query can also be described without
+/// one quadrant (partial occlusion) at no extra pixel cost.
+constexpr int kQuadrants = 4;
+
+/// Quadrants left out by each query variant (bit q: quadrant q = 2 * lower +
+/// right): none, each one, then each half.
+constexpr unsigned kVariantExcluded[] = {0u, 1u, 2u, 4u, 8u, 3u, 12u, 5u, 10u};
+/// Variants a query uses: the whole view and the four "all but one
+/// quadrant" views (tuning views: the halves as well raised top-1 from 0.93
+/// to 0.94 but made the open set harder to reject).
+constexpr int kQueryVariants = 5;
+
+inline int Quadrant(int x, int y, int cols, int rows) {
+  return (2 * y >= rows ? 2 : 0) + (2 * x >= cols ? 1 : 0);
+}
+
 bool IsEmpty(const std::vector<double>& hist) {
   return std::all_of(
       hist.begin(), hist.end(), [](double h) { return h == 0.0; });
-}
-
-/// Median of an 8-bit single-channel image.
-double CalcMedian(const cv::Mat& grey8) {
-  int counts[256] = {};
-  for (int y = 0; y < grey8.rows; ++y) {
-    const unsigned char* row = grey8.ptr<unsigned char>(y);
-    for (int x = 0; x < grey8.cols; ++x) ++counts[row[x]];
-  }
-  const long long half = static_cast<long long>(grey8.total()) / 2;
-  long long seen = 0;
-  for (int v = 0; v < 256; ++v) {
-    seen += counts[v];
-    if (seen > half) return v;
-  }
-  return 255;
 }
 
 /// Normalises `hist` to sum 1 and stores the square roots at `out`.
@@ -177,50 +203,105 @@ void StoreSqrtHistogram(const std::vector<double>& hist, float* out) {
   }
 }
 
-/// Hue-saturation histogram with linear interpolation between hue bins
-/// (circular) and one extra bin for unsaturated or dark pixels.
-std::vector<double> CalcHueSaturationHistogram(const cv::Mat& bgr) {
-  cv::Mat hsv;
-  cv::cvtColor(bgr, hsv, cv::COLOR_BGR2HSV);  // H in [0, 180)
-  std::vector<double> hist(kHueBins * kSaturationBins + 1, 0.0);
-  const double hue_scale = kHueBins / 180.0;
-  const double sat_scale =
-      kSaturationBins / static_cast<double>(256 - kMinSaturation);
-  for (int y = 0; y < hsv.rows; ++y) {
-    const cv::Vec3b* row = hsv.ptr<cv::Vec3b>(y);
-    for (int x = 0; x < hsv.cols; ++x) {
-      const int h = row[x][0];
-      const int s = row[x][1];
-      const int v = row[x][2];
-      if (s < kMinSaturation || v < kMinValue) {
-        hist.back() += 1.0;
+/// Channel sums and counts of the pixels that are neither clipped nor dark,
+/// per quadrant.
+struct ChannelSums {
+  cv::Vec3d sum[kQuadrants];
+  double count[kQuadrants] = {};
+
+  /// Channel means over the quadrants not in the bit mask `excluded`.
+  cv::Vec3d Means(unsigned excluded) const {
+    cv::Vec3d total(0, 0, 0);
+    double n = 0;
+    for (int q = 0; q < kQuadrants; ++q) {
+      if ((excluded >> q) & 1u) continue;
+      total += sum[q];
+      n += count[q];
+    }
+    if (n == 0) return cv::Vec3d(1, 1, 1);
+    return cv::Vec3d(std::max(1.0, total[0] / n),
+                     std::max(1.0, total[1] / n),
+                     std::max(1.0, total[2] / n));
+  }
+};
+
+ChannelSums CalcChannelSums(const cv::Mat& bgr) {
+  ChannelSums sums;
+  for (int y = 0; y < bgr.rows; ++y) {
+    const cv::Vec3b* row = bgr.ptr<cv::Vec3b>(y);
+    for (int x = 0; x < bgr.cols; ++x) {
+      const cv::Vec3b& p = row[x];
+      if (std::max({p[0], p[1], p[2]}) >= kClipGrey ||
+          p[0] + p[1] + p[2] < kMinChannelSum) {
         continue;
       }
-      const int sat_bin =
-          std::min(kSaturationBins - 1,
-                   static_cast<int>((s - kMinSaturation) * sat_scale));
-      const double position = h * hue_scale - 0.5;
-      const double lower = std::floor(position);
-      const double frac = position - lower;
-      const int b0 = (static_cast<int>(lower) + kHueBins) % kHueBins;
-      const int b1 = (b0 + 1) % kHueBins;
-      hist[sat_bin * kHueBins + b0] += 1.0 - frac;
-      hist[sat_bin * kHueBins + b1] += frac;
+      const int q = Quadrant(x, y, bgr.cols, bgr.rows);
+      sums.sum[q] += cv::Vec3d(p[0], p[1], p[2]);
+      sums.count[q] += 1;
     }
   }
-  return hist;
+  return sums;
 }
 
-/// Histogram of g / median(g) (g is already normalised to median 128), linear
-/// interpolation between bins.
+/// Grey-world chromaticity histogram (colour constancy under a diagonal
+/// light-colour change): each channel is divided by its mean, then the
+/// chromaticities r = R'/(R'+G'+B') and b = B'/(R'+G'+B') are histogrammed
+/// with bilinear soft binning. Invariant to light colour, intensity and
+/// falloff (a common gain per pixel), so it describes the colour variation
+/// within the material, not its mean colour.
+std::vector<double> CalcChromaticityHistogram(const cv::Mat& bgr,
+                                              const cv::Vec3d& means) {
+  std::vector<double> all(kQuadrants * kChromaBins * kChromaBins, 0.0);
+  const double inv[3] = {1.0 / means[0], 1.0 / means[1], 1.0 / means[2]};
+  const double lo = 1.0 / 3.0 - kChromaHalfRange;
+  const double scale = kChromaBins / (2.0 * kChromaHalfRange);
+  auto bin = [&](double c, int* b0, double* frac) {
+    const double position =
+        std::clamp((c - lo) * scale - 0.5, 0.0, kChromaBins - 1.0);
+    *b0 = std::min(kChromaBins - 2, static_cast<int>(position));
+    *frac = position - *b0;
+  };
+  for (int y = 0; y < bgr.rows; ++y) {
+    const cv::Vec3b* row = bgr.ptr<cv::Vec3b>(y);
+    for (int x = 0; x < bgr.cols; ++x) {
+      const cv::Vec3b& p = row[x];
+      if (std::max({p[0], p[1], p[2]}) >= kClipGrey ||
+          p[0] + p[1] + p[2] < kMinChannelSum) {
+        continue;
+      }
+      double* hist = all.data() + Quadrant(x, y, bgr.cols, bgr.rows) *
+                                      kChromaBins * kChromaBins;
+      const double blue = p[0] * inv[0];
+      const double green = p[1] * inv[1];
+      const double red = p[2] * inv[2];
+      const double sum = blue + green + red;
+      int r0, b0;
+      double rf, bf;
+      bin(red / sum, &r0, &rf);
+      bin(blue / sum, &b0, &bf);
+      hist[r0 * kChromaBins + b0] += (1 - rf) * (1 - bf);
+      hist[r0 * kChromaBins + b0 + 1] += (1 - rf) * bf;
+      hist[(r0 + 1) * kChromaBins + b0] += rf * (1 - bf);
+      hist[(r0 + 1) * kChromaBins + b0 + 1] += rf * bf;
+    }
+  }
+  return all;
+}
+
+/// Histogram of g / local mean (g is already normalised so that the local
+/// mean is 128), linear interpolation between bins; clipped pixels (mask
+/// non-zero) are left out.
 std::vector<double> CalcRelativeIntensityHistogram(const cv::Mat1f& grey,
-                                                   float clip_level) {
-  std::vector<double> hist(kIntensityBins, 0.0);
+                                                   const cv::Mat1b& clipped) {
+  std::vector<double> all(kQuadrants * kIntensityBins, 0.0);
   const float scale = kIntensityBins / (kMaxRelative * 128.0f);
   for (int y = 0; y < grey.rows; ++y) {
     const float* row = grey[y];
+    const unsigned char* mask = clipped[y];
     for (int x = 0; x < grey.cols; ++x) {
-      if (row[x] >= clip_level) continue;
+      if (mask[x]) continue;
+      double* hist =
+          all.data() + Quadrant(x, y, grey.cols, grey.rows) * kIntensityBins;
       const float position =
           std::min(row[x] * scale - 0.5f, kIntensityBins - 1.0f);
       if (position <= 0.0f) {
@@ -233,8 +314,7 @@ std::vector<double> CalcRelativeIntensityHistogram(const cv::Mat1f& grey,
       if (b0 + 1 < kIntensityBins) hist[b0 + 1] += frac;
     }
   }
-  if (IsEmpty(hist)) hist.back() = 1.0;  // all clipped: bright
-  return hist;
+  return all;
 }
 
 /// Rotation-invariant uniform LBP (Ojala et al. 2002, LBP^riu2_{P,R}) with
@@ -242,9 +322,9 @@ std::vector<double> CalcRelativeIntensityHistogram(const cv::Mat1f& grey,
 /// neighbours when the circular bit pattern has at most two 0/1 transitions,
 /// P + 1 otherwise.
 std::vector<double> CalcLbpHistogram(const cv::Mat1f& grey,
-                                     double radius,
-                                     float clip_level) {
-  std::vector<double> hist(kLbpBins, 0.0);
+                                     const cv::Mat1b& clipped,
+                                     double radius) {
+  std::vector<double> all(kQuadrants * kLbpBins, 0.0);
   struct Sample {
     int dx0, dy0;
     float w00, w01, w10, w11;
@@ -269,7 +349,7 @@ std::vector<double> CalcLbpHistogram(const cv::Mat1f& grey,
   const int margin = static_cast<int>(std::ceil(radius)) + 1;
   for (int y = margin; y < grey.rows - margin; ++y) {
     for (int x = margin; x < grey.cols - margin; ++x) {
-      if (grey(y, x) >= clip_level) continue;
+      if (clipped(y, x)) continue;
       const float centre = grey(y, x) + kLbpTau;
       unsigned bits = 0;
       for (int p = 0; p < kLbpSamples; ++p) {
@@ -288,11 +368,10 @@ std::vector<double> CalcLbpHistogram(const cv::Mat1f& grey,
           transitions <= 2
               ? static_cast<int>(std::bitset<kLbpSamples>(bits).count())
               : kLbpSamples + 1;
-      hist[code] += 1.0;
+      all[Quadrant(x, y, grey.cols, grey.rows) * kLbpBins + code] += 1.0;
     }
   }
-  if (IsEmpty(hist)) hist[0] = 1.0;  // all clipped: flat
-  return hist;
+  return all;
 }
 
 struct LbpScale {
@@ -300,7 +379,7 @@ struct LbpScale {
   double radius;
 };
 constexpr LbpScale kLbpScales[] = {
-    {0, 1.0}, {0, 2.0}, {0, 3.0}, {1, 1.0}, {1, 2.0}};
+    {0, 1.0}, {0, 2.0}, {0, 3.0}, {1, 1.0}, {1, 2.0}, {2, 1.0}, {2, 2.0}};
 
 }  // namespace
 
@@ -371,72 +450,184 @@ cv::Mat DecodeImage(std::string_view bytes,
 }
 
 const std::vector<FeatureBlock>& FeatureLayout() {
-  static const std::vector<FeatureBlock> layout = {
-      {"hue_saturation", kHueBins * kSaturationBins + 1, 0.30},
-      {"lbp_l0_r1", kLbpBins, 0.11},
-      {"lbp_l0_r2", kLbpBins, 0.11},
-      {"lbp_l0_r3", kLbpBins, 0.11},
-      {"lbp_l1_r1", kLbpBins, 0.11},
-      {"lbp_l1_r2", kLbpBins, 0.11},
-      {"relative_intensity", kIntensityBins, 0.15},
-  };
+  static const std::vector<FeatureBlock> layout = [] {
+    std::vector<FeatureBlock> l = {
+        {"chromaticity", kChromaBins * kChromaBins, 0.18, true},
+        {"lbp_l0_r1", kLbpBins, 0.12, true},
+        {"lbp_l0_r2", kLbpBins, 0.12, true},
+        {"lbp_l0_r3", kLbpBins, 0.12, true},
+        {"lbp_l1_r1", kLbpBins, 0.12, true},
+        {"lbp_l1_r2", kLbpBins, 0.12, true},
+        {"lbp_l2_r1", kLbpBins, 0.12, true},
+        {"lbp_l2_r2", kLbpBins, 0.12, true},
+        {"relative_intensity", kIntensityBins, 0.12, true},
+        {"mean_log_chromaticity", 2, 0.10, false},
+    };
+    // Relative weights above; normalised to sum 1.
+    double total = 0.0;
+    for (const FeatureBlock& b : l) total += b.weight;
+    for (FeatureBlock& b : l) b.weight /= total;
+    return l;
+  }();
   return layout;
 }
 
-std::size_t FeatureSize() {
-  std::size_t n = 0;
-  for (const FeatureBlock& b : FeatureLayout()) n += b.size;
+std::size_t ScaleFeatureSize() {
+  static const std::size_t n = [] {
+    std::size_t total = 0;
+    for (const FeatureBlock& b : FeatureLayout()) total += b.size;
+    return total;
+  }();
   return n;
 }
 
-std::vector<float> ComputeFeatures(const cv::Mat& bgr) {
-  CV_Assert(bgr.type() == CV_8UC3 && !bgr.empty());
+std::size_t FeatureSize() {
+  return ScaleFeatureSize() * (kScales + kQueryVariants - 1);
+}
+
+int ScaleCount() { return kScales; }
+
+int UnitScaleIndex() { return kUnitScale; }
+
+int QueryVariantCount() { return kQueryVariants; }
+
+namespace {
+
+/// Features of `bgr` as a camera `magnification` times nearer would see it,
+/// written to `out` (ScaleFeatureSize() floats). Magnification 1 is the
+/// query path: the image resized to the working size. Above 1 the image is
+/// enlarged and its centre cropped to the working size; below 1 it is
+/// shrunk (fewer pixels, the same histograms).
+void ComputeScaleFeatures(const cv::Mat& bgr,
+                          double magnification,
+                          int variants,
+                          float* out) {
   // 1. Working size: shorter side kWorkingSide, longer side capped.
-  const double scale =
+  const double base =
       std::min(kWorkingSide / static_cast<double>(std::min(bgr.cols, bgr.rows)),
                kMaxAspect * kWorkingSide /
                    static_cast<double>(std::max(bgr.cols, bgr.rows)));
+  const cv::Size working(
+      std::max(1, static_cast<int>(std::lround(bgr.cols * base))),
+      std::max(1, static_cast<int>(std::lround(bgr.rows * base))));
+  const double scale = base * magnification;
   const cv::Size size(
-      std::max(1, static_cast<int>(std::lround(bgr.cols * scale))),
-      std::max(1, static_cast<int>(std::lround(bgr.rows * scale))));
+      std::max(8, static_cast<int>(std::lround(bgr.cols * scale))),
+      std::max(8, static_cast<int>(std::lround(bgr.rows * scale))));
   cv::Mat work;
   cv::resize(
       bgr, work, size, 0, 0, scale < 1.0 ? cv::INTER_AREA : cv::INTER_LINEAR);
+  if (work.cols > working.width || work.rows > working.height) {
+    const cv::Rect centre((work.cols - std::min(work.cols, working.width)) / 2,
+                          (work.rows - std::min(work.rows, working.height)) / 2,
+                          std::min(work.cols, working.width),
+                          std::min(work.rows, working.height));
+    work = work(centre).clone();
+  }
 
-  std::vector<float> features(FeatureSize());
-  float* out = features.data();
   const std::vector<FeatureBlock>& layout = FeatureLayout();
+  const std::size_t per_scale = ScaleFeatureSize();
   std::size_t block = 0;
-  auto store = [&](const std::vector<double>& hist) {
-    CV_Assert(static_cast<int>(hist.size()) == layout[block].size);
-    StoreSqrtHistogram(hist, out);
-    out += layout[block].size;
+  std::size_t offset = 0;  // of the block within a variant
+  // Variant 0: every quadrant; variant v > 0: all but quadrant v - 1.
+  // `empty_bin` takes the whole mass when no pixel counted.
+  auto store = [&](const std::vector<double>& per_quadrant, int empty_bin) {
+    const int bins = layout[block].size;
+    CV_Assert(static_cast<int>(per_quadrant.size()) == kQuadrants * bins);
+    std::vector<double> hist(bins);
+    for (int v = 0; v < variants; ++v) {
+      std::fill(hist.begin(), hist.end(), 0.0);
+      for (int q = 0; q < kQuadrants; ++q) {
+        if ((kVariantExcluded[v] >> q) & 1u) continue;
+        for (int i = 0; i < bins; ++i) hist[i] += per_quadrant[q * bins + i];
+      }
+      if (IsEmpty(hist)) hist[empty_bin] = 1.0;
+      StoreSqrtHistogram(hist, out + v * per_scale + offset);
+    }
+    offset += bins;
     ++block;
   };
 
-  // 2. Colour.
-  store(CalcHueSaturationHistogram(work));
+  // Smoothing first: camera blur, noise and JPEG blocks then change the
+  // histograms less (chosen on the tuning views: sigma 0 / 1 / 1.5 / 2 gave
+  // top-1 0.87 / 0.90 / 0.93 / 0.89).
+  cv::GaussianBlur(work, work, cv::Size(0, 0), kSmoothingSigma);
+  // 2. Colour, invariant to the light's colour (grey world).
+  const ChannelSums sums = CalcChannelSums(work);
+  store(CalcChromaticityHistogram(work, sums.Means(0u)),
+        (kChromaBins / 2) * kChromaBins + kChromaBins / 2);
 
-  // 3. Grey, normalised to median 128 (multiplicative brightness removed).
+  // 3. Grey, divided by the local light level (intensity and falloff
+  // removed), local mean 128.
   cv::Mat grey8;
   cv::cvtColor(work, grey8, cv::COLOR_BGR2GRAY);
+  cv::Mat1b clipped = grey8 >= kClipGrey;
   cv::Mat1f grey;
   grey8.convertTo(grey, CV_32F);
-  const double median = std::max(1.0, CalcMedian(grey8));
-  const float gain = static_cast<float>(128.0 / median);
-  grey *= gain;
-  const float clip_level = kClipGrey * gain;
+  cv::Mat1f light;
+  cv::GaussianBlur(grey,
+                   light,
+                   cv::Size(0, 0),
+                   kIlluminationSigma,
+                   kIlluminationSigma,
+                   cv::BORDER_REFLECT);
+  cv::max(light, 4.0f, light);
+  cv::divide(grey, light, grey, 128.0);
   cv::Mat1f half;
+  cv::Mat1b half_clipped;
   cv::resize(grey, half, cv::Size(), 0.5, 0.5, cv::INTER_AREA);
+  cv::resize(clipped, half_clipped, half.size(), 0, 0, cv::INTER_NEAREST);
+  cv::Mat1f quarter;
+  cv::Mat1b quarter_clipped;
+  cv::resize(half, quarter, cv::Size(), 0.5, 0.5, cv::INTER_AREA);
+  cv::resize(clipped, quarter_clipped, quarter.size(), 0, 0, cv::INTER_NEAREST);
 
   // 4. Texture.
   for (const LbpScale& s : kLbpScales) {
-    store(CalcLbpHistogram(s.level == 0 ? grey : half, s.radius, clip_level));
+    store(s.level == 0   ? CalcLbpHistogram(grey, clipped, s.radius)
+          : s.level == 1 ? CalcLbpHistogram(half, half_clipped, s.radius)
+                         : CalcLbpHistogram(quarter, quarter_clipped, s.radius),
+          0);  // all clipped: flat
   }
 
   // 5. Contrast shape.
-  store(CalcRelativeIntensityHistogram(grey, clip_level));
+  store(CalcRelativeIntensityHistogram(grey, clipped),
+        kIntensityBins - 1);  // all clipped: bright
+
+  // 6. Mean colour as log chromaticities (compared with a tolerance).
+  for (int v = 0; v < variants; ++v) {
+    const cv::Vec3d means = sums.Means(kVariantExcluded[v]);
+    out[v * per_scale + offset] =
+        static_cast<float>(std::log(means[2] / means[1]));
+    out[v * per_scale + offset + 1] =
+        static_cast<float>(std::log(means[0] / means[1]));
+  }
+  ++block;
   CV_Assert(block == layout.size());
+}
+
+}  // namespace
+
+std::vector<float> ComputeFeatures(const cv::Mat& bgr) {
+  CV_Assert(bgr.type() == CV_8UC3 && !bgr.empty());
+  std::vector<float> features(ScaleFeatureSize() * QueryVariantCount());
+  ComputeScaleFeatures(bgr, 1.0, QueryVariantCount(), features.data());
+  return features;
+}
+
+std::vector<float> ComputeReferenceFeatures(const cv::Mat& bgr) {
+  CV_Assert(bgr.type() == CV_8UC3 && !bgr.empty());
+  std::vector<float> features(FeatureSize());
+  const std::size_t n = ScaleFeatureSize();
+  for (int k = 0; k < kScales; ++k) {
+    if (k == kUnitScale) continue;
+    ComputeScaleFeatures(bgr, kMagnifications[k], 1, features.data() + k * n);
+  }
+  // Magnification 1: the whole view at kUnitScale, the other query variants
+  // after the pyramid (so that RecognizeFeatures matches like Recognize).
+  const std::vector<float> query = ComputeFeatures(bgr);
+  std::copy_n(query.begin(), n, features.begin() + kUnitScale * n);
+  std::copy(query.begin() + n, query.end(), features.begin() + kScales * n);
   return features;
 }
 
@@ -448,39 +639,70 @@ void CheckFeatures(const std::vector<float>& features) {
         std::to_string(MaterialRecognizer::kFeatureVersion) + ")");
   }
   for (std::size_t i = 0; i < features.size(); ++i) {
-    if (!(features[i] >= 0.0f) || !std::isfinite(features[i])) {
+    if (!std::isfinite(features[i])) {
       throw std::invalid_argument("features: value [" + std::to_string(i) +
                                   "] = " + std::to_string(features[i]) +
-                                  " (must be finite and >= 0)");
+                                  " (must be finite)");
     }
   }
   std::size_t at = 0;
-  for (const FeatureBlock& b : FeatureLayout()) {
-    double norm2 = 0.0;
-    for (int i = 0; i < b.size; ++i)
-      norm2 += double{features[at + i]} * features[at + i];
-    if (!(std::abs(norm2 - 1.0) <= 1e-3)) {
-      throw std::invalid_argument(
-          std::string("features: block ") + b.name + " has squared norm " +
-          std::to_string(norm2) +
-          " (must be 1; use vectors returned by ExtractFeatures)");
+  for (int k = 0; k < kScales + kQueryVariants - 1; ++k) {
+    for (const FeatureBlock& b : FeatureLayout()) {
+      if (!b.histogram) {
+        for (int i = 0; i < b.size; ++i) {
+          if (!(std::abs(features[at + i]) <= 10.0f)) {
+            throw std::invalid_argument(
+                "features: value [" + std::to_string(at + i) +
+                "] = " + std::to_string(features[at + i]) + " (block " +
+                b.name + " must be in [-10, 10])");
+          }
+        }
+        at += b.size;
+        continue;
+      }
+      double norm2 = 0.0;
+      for (int i = 0; i < b.size; ++i) {
+        if (!(features[at + i] >= 0.0f)) {
+          throw std::invalid_argument(
+              "features: value [" + std::to_string(at + i) +
+              "] = " + std::to_string(features[at + i]) + " (block " + b.name +
+              " must be finite and >= 0)");
+        }
+        norm2 += double{features[at + i]} * features[at + i];
+      }
+      if (!(std::abs(norm2 - 1.0) <= 1e-3)) {
+        throw std::invalid_argument(
+            std::string("features: block ") + b.name + " has squared norm " +
+            std::to_string(norm2) +
+            " (must be 1; use vectors returned by ExtractFeatures)");
+      }
+      at += b.size;
     }
-    at += b.size;
   }
 }
 
 double CalcSimilarity(const float* a, const float* b) {
   double score = 1.0;
   for (const FeatureBlock& block : FeatureLayout()) {
-    // H^2 = 1 - BC = sum (a_i - b_i)^2 / 2 for unit-norm sqrt histograms;
-    // the difference form is exact (0) for identical vectors.
-    double sum2 = 0.0;
-    for (int i = 0; i < block.size; ++i) {
-      const double d = double{a[i]} - double{b[i]};
-      sum2 += d * d;
+    if (block.histogram) {
+      // Histogram intersection (Swain and Ballard 1991) of the histograms
+      // h = a^2: D = 1 - sum min(h_a, h_b). Extra mass in one histogram (an
+      // occluder) costs only its own share, where the Hellinger distance
+      // grows with its square root (tuning views: accepted and right at 3 %
+      // false accepts 0.71 against 0.65).
+      double intersection = 0.0;
+      for (int i = 0; i < block.size; ++i) {
+        intersection += std::min(double{a[i]} * a[i], double{b[i]} * b[i]);
+      }
+      score -= block.weight * std::clamp(1.0 - intersection, 0.0, 1.0);
+    } else {
+      // Mean log chromaticities: free within the light-colour tolerance.
+      const double distance =
+          std::hypot(double{a[0]} - b[0], double{a[1]} - b[1]);
+      score -=
+          block.weight *
+          std::clamp((distance - kColourTolerance) / kColourRange, 0.0, 1.0);
     }
-    const double hellinger = std::sqrt(std::min(1.0, 0.5 * sum2));
-    score -= block.weight * hellinger;
     a += block.size;
     b += block.size;
   }

@@ -33,32 +33,56 @@ ImageHeader ReadImageHeader(std::string_view bytes);
 /// @throws std::invalid_argument "image: ..." naming the reason.
 cv::Mat DecodeImage(std::string_view bytes, int min_side, long long max_pixels);
 
-/// Histogram blocks of the feature vector, in order. Each block holds the
-/// square roots of an L1-normalised histogram, so its Euclidean norm is 1 and
-/// the dot product of two blocks is the Bhattacharyya coefficient.
+/// Blocks of the feature vector of one scale, in order. A histogram block
+/// holds the square roots of an L1-normalised histogram, so its Euclidean
+/// norm is 1 and the dot product of two blocks is the Bhattacharyya
+/// coefficient; the one non-histogram block holds the mean log
+/// chromaticities (log(R/G), log(B/G)).
 struct FeatureBlock {
   const char* name;
   int size;
-  double weight;  ///< contribution to the score; weights sum to 1
+  double weight;   ///< contribution to the score; weights sum to 1
+  bool histogram;  ///< false: mean log chromaticities
 };
 
-/// The layout: hue-saturation, LBP riu2 at 5 (scale, radius) pairs, relative
-/// intensity.
+/// The layout of one scale: grey-world chromaticity, LBP riu2 at 7 (scale,
+/// radius) pairs, relative intensity, mean log chromaticity.
 const std::vector<FeatureBlock>& FeatureLayout();
 
-/// Total number of floats (sum of the block sizes).
+/// Floats per scale (sum of the block sizes).
+std::size_t ScaleFeatureSize();
+/// Number of scales in a reference vector (the magnification pyramid).
+int ScaleCount();
+/// Index of magnification 1 in a reference vector.
+int UnitScaleIndex();
+/// Total number of floats of a reference vector: ScaleCount() scales, then
+/// the QueryVariantCount() - 1 partial views at magnification 1.
 std::size_t FeatureSize();
 
-/// Computes the feature vector of a decoded 8-bit BGR image of any size.
+/// Number of descriptions of a query: the whole view, then the view without
+/// each of its four quadrants (partial occlusion).
+int QueryVariantCount();
+
+/// Query features of a decoded 8-bit BGR image of any size at magnification
+/// 1: QueryVariantCount() single-scale vectors (ScaleFeatureSize() floats
+/// each), the whole view first.
 std::vector<float> ComputeFeatures(const cv::Mat& bgr);
 
-/// Validates a vector given by a caller (size, finite, non-negative, unit
-/// norm per block).
+/// Reference features: ScaleCount() scales, the image as a camera at
+/// magnifications 0.5 .. 2 (steps of 2^(1/4)) would see it (scale
+/// UnitScaleIndex() is the whole view of ComputeFeatures(bgr)), then the
+/// other variants of ComputeFeatures(bgr).
+std::vector<float> ComputeReferenceFeatures(const cv::Mat& bgr);
+
+/// Validates a reference vector given by a caller (size, finite, histogram
+/// blocks non-negative with unit norm, chromaticities bounded).
 /// @throws std::invalid_argument "features: ..." naming the rule.
 void CheckFeatures(const std::vector<float>& features);
 
-/// score = 1 - sum_b w_b * H_b with the Hellinger distance
-/// H_b = sqrt(1 - BC_b) = ||a_b - b_b|| / sqrt(2), in [0, 1].
+/// Similarity of two single-scale vectors, in [0, 1]:
+/// score = 1 - sum_b w_b * D_b, with D_b = 1 - sum_i min(h_a,i, h_b,i) the
+/// histogram intersection distance of the histograms h = (stored value)^2,
+/// and for the mean colour clamp((|d log chroma| - tolerance) / range, 0, 1).
 double CalcSimilarity(const float* a, const float* b);
 
 }  // namespace internal

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <mutex>
 #include <shared_mutex>
 #include <stdexcept>
@@ -12,12 +13,28 @@
 
 namespace frictiond {
 namespace internal {
+namespace {
+
+/// Two decimals, for the reasons ("0.62").
+std::string Fixed(double value) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.2f", value);
+  return text;
+}
+
+}  // namespace
 
 /// Registered references, stored as one contiguous feature array so that a
 /// query is a single linear scan.
 class RecognizerImpl {
  public:
   explicit RecognizerImpl(RecognizerOptions options) : options_(options) {}
+
+  /// Platt scaling of the evidence into a probability.
+  double Calibrate(double evidence) const {
+    return 1.0 / (1.0 + std::exp(-options_.calibration_slope *
+                                 (evidence - options_.calibration_midpoint)));
+  }
 
   const RecognizerOptions& options() const { return options_; }
 
@@ -51,36 +68,74 @@ class RecognizerImpl {
     features_.clear();
   }
 
-  RecognitionResult Recognize(const std::vector<float>& query) const {
+  /// `query` holds `variants` single-scale vectors (ScaleFeatureSize()
+  /// floats each); a reference's similarity is the best over the variants
+  /// and the reference's scales.
+  RecognitionResult Recognize(const float* query, int variants) const {
     std::vector<RecognitionCandidate> best;
     {
       std::shared_lock lock(mutex_);
       const std::size_t n = FeatureSize();
+      const std::size_t per_scale = ScaleFeatureSize();
+      const int scales = ScaleCount();
       std::unordered_map<std::string_view, std::size_t> index;
       for (std::size_t i = 0; i < materials_.size(); ++i) {
-        const double score = CalcSimilarity(query.data(), &features_[i * n]);
+        double similarity = 0.0;
+        const float* reference = &features_[i * n];
+        for (int v = 0; v < variants; ++v) {
+          for (int k = 0; k < scales; ++k) {
+            similarity = std::max(similarity,
+                                  CalcSimilarity(query + v * per_scale,
+                                                 reference + k * per_scale));
+          }
+        }
         const auto [it, inserted] = index.emplace(materials_[i], best.size());
         if (inserted) {
-          best.push_back({materials_[i], score});
-        } else if (score > best[it->second].score) {
-          best[it->second].score = score;
+          best.push_back({materials_[i], 0.0, similarity});
+        } else if (similarity > best[it->second].similarity) {
+          best[it->second].similarity = similarity;
         }
       }
     }
     std::sort(best.begin(),
               best.end(),
               [](const RecognitionCandidate& a, const RecognitionCandidate& b) {
-                if (a.score != b.score) return a.score > b.score;
+                if (a.similarity != b.similarity)
+                  return a.similarity > b.similarity;
                 return a.material < b.material;
               });
+    // Evidence = similarity + margin over the best other material (a
+    // ratio-test in difference form; with one material the margin is 0).
+    for (std::size_t i = 0; i < best.size(); ++i) {
+      const double other = best.size() == 1 ? best[i].similarity
+                           : i == 0         ? best[1].similarity
+                                            : best[0].similarity;
+      best[i].score = Calibrate(2.0 * best[i].similarity - other);
+    }
     RecognitionResult result;
     result.unknown = true;
-    if (!best.empty()) {
+    result.operating_point = options_.unknown_threshold;
+    if (best.empty()) {
+      result.reason = "no reference image is registered";
+    } else {
+      const RecognitionCandidate& top = best[0];
       const double margin =
-          best.size() > 1 ? best[0].score - best[1].score : best[0].score;
-      result.unknown =
-          !(best[0].score >= options_.unknown_threshold) ||
-          (options_.min_margin > 0.0 && margin < options_.min_margin);
+          best.size() > 1 ? top.score - best[1].score : top.score;
+      const std::string point =
+          "the " + Fixed(options_.unknown_threshold) + " operating point";
+      if (!(top.score >= options_.unknown_threshold)) {
+        result.reason = "closest is " + top.material + " at " +
+                        Fixed(top.score) + ", below " + point;
+      } else if (options_.min_margin > 0.0 && margin < options_.min_margin) {
+        result.reason = "closest is " + top.material + " at " +
+                        Fixed(top.score) + " but " + best[1].material +
+                        " is within " + Fixed(margin) + " (min_margin " +
+                        Fixed(options_.min_margin) + ")";
+      } else {
+        result.unknown = false;
+        result.reason =
+            top.material + " at " + Fixed(top.score) + ", at or above " + point;
+      }
     }
     if (best.size() > static_cast<std::size_t>(options_.max_candidates)) {
       best.resize(static_cast<std::size_t>(options_.max_candidates));
@@ -119,8 +174,15 @@ void CheckMaterialId(const std::string& material_id) {
   }
 }
 
-std::vector<float> DecodeAndExtract(std::string_view encoded_image) {
+std::vector<float> DecodeAndExtractQuery(std::string_view encoded_image) {
   return internal::ComputeFeatures(
+      internal::DecodeImage(encoded_image,
+                            MaterialRecognizer::kMinImageSide,
+                            MaterialRecognizer::kMaxImagePixels));
+}
+
+std::vector<float> DecodeAndExtract(std::string_view encoded_image) {
+  return internal::ComputeReferenceFeatures(
       internal::DecodeImage(encoded_image,
                             MaterialRecognizer::kMinImageSide,
                             MaterialRecognizer::kMaxImagePixels));
@@ -140,6 +202,12 @@ bool RecognizerOptions::IsValid(std::string* why) const {
               " (must be in [0, 1])";
   } else if (!(min_margin >= 0.0 && min_margin <= 1.0)) {
     message = "min_margin = " + Number(min_margin) + " (must be in [0, 1])";
+  } else if (!(calibration_slope > 0.0 && calibration_slope <= 1e4)) {
+    message = "calibration_slope = " + Number(calibration_slope) +
+              " (must be in (0, 10000])";
+  } else if (!(calibration_midpoint >= 0.0 && calibration_midpoint <= 1.0)) {
+    message = "calibration_midpoint = " + Number(calibration_midpoint) +
+              " (must be in [0, 1])";
   } else if (!(max_candidates >= 1)) {
     message = "max_candidates = " + std::to_string(max_candidates) +
               " (must be >= 1)";
@@ -190,13 +258,23 @@ void MaterialRecognizer::Clear() { impl_->Clear(); }
 
 RecognitionResult MaterialRecognizer::Recognize(
     std::string_view encoded_image) const {
-  return impl_->Recognize(DecodeAndExtract(encoded_image));
+  return impl_->Recognize(DecodeAndExtractQuery(encoded_image).data(),
+                          internal::QueryVariantCount());
 }
 
 RecognitionResult MaterialRecognizer::RecognizeFeatures(
     const std::vector<float>& features) const {
   internal::CheckFeatures(features);
-  return impl_->Recognize(features);
+  // The query variants: the whole view (unit scale), then the partial views
+  // stored after the pyramid.
+  const std::size_t n = internal::ScaleFeatureSize();
+  const std::size_t unit = internal::UnitScaleIndex() * n;
+  std::vector<float> query(features.begin() + unit,
+                           features.begin() + unit + n);
+  query.insert(query.end(),
+               features.begin() + internal::ScaleCount() * n,
+               features.end());
+  return impl_->Recognize(query.data(), internal::QueryVariantCount());
 }
 
 std::size_t MaterialRecognizer::reference_count() const {

@@ -91,6 +91,14 @@ TEST(RecognizerOptionsTest, RejectsEachBadFieldWithItsName) {
   EXPECT_EQ(why, "max_candidates = 0 (must be >= 1)");
   EXPECT_INVALID_ARGUMENT(
       MaterialRecognizer{o}, "max_candidates = 0", "must be >= 1");
+  o = RecognizerOptions{};
+  o.calibration_slope = 0.0;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("calibration_slope = 0"), std::string::npos) << why;
+  o = RecognizerOptions{};
+  o.calibration_midpoint = -0.1;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("calibration_midpoint = -0.1"), std::string::npos) << why;
 }
 
 class BadImageTest : public ::testing::Test {
@@ -194,6 +202,7 @@ TEST(MaterialRecognizerTest, EmptyRegistryAnswersUnknown) {
       recognizer.Recognize(Encode(MakeTexture(2, cv::Scalar(90, 200, 90))));
   EXPECT_TRUE(r.unknown);
   EXPECT_TRUE(r.candidates.empty());
+  EXPECT_EQ(r.reason, "no reference image is registered");
 }
 
 TEST(MaterialRecognizerTest, FeaturesRoundTripAndSelfMatch) {
@@ -212,10 +221,22 @@ TEST(MaterialRecognizerTest, FeaturesRoundTripAndSelfMatch) {
   ASSERT_EQ(r.candidates.size(), 2u);
   EXPECT_FALSE(r.unknown);
   EXPECT_EQ(r.candidates[0].material, "steel");
-  EXPECT_NEAR(r.candidates[0].score, 1.0, 1e-5);
+  EXPECT_NEAR(r.candidates[0].similarity, 1.0, 1e-5);
   EXPECT_EQ(r.candidates[1].material, "rubber");
-  EXPECT_GE(r.candidates[1].score, 0.0);
-  EXPECT_LT(r.candidates[1].score, r.candidates[0].score);
+  EXPECT_GE(r.candidates[1].similarity, 0.0);
+  EXPECT_LT(r.candidates[1].similarity, r.candidates[0].similarity);
+  // The score is the calibrated evidence: similarity plus the margin over
+  // the other material (RecognitionCandidate::score).
+  const RecognizerOptions& o = recognizer.options();
+  const double evidence =
+      2 * r.candidates[0].similarity - r.candidates[1].similarity;
+  EXPECT_NEAR(r.candidates[0].score,
+              1 / (1 + std::exp(-o.calibration_slope *
+                                (evidence - o.calibration_midpoint))),
+              1e-12);
+  EXPECT_GT(r.candidates[0].score, r.candidates[1].score);
+  EXPECT_EQ(r.reason.rfind("steel at ", 0), 0u) << r.reason;
+  EXPECT_EQ(r.operating_point, o.unknown_threshold);
 
   const RecognitionResult from_features = recognizer.RecognizeFeatures(f);
   ASSERT_EQ(from_features.candidates.size(), 2u);
@@ -234,7 +255,7 @@ TEST(MaterialRecognizerTest, BadFeatureVectorsAreRejected) {
   bad[3] = std::numeric_limits<float>::quiet_NaN();
   EXPECT_INVALID_ARGUMENT(recognizer.AddReferenceFeatures("x", bad),
                           "features: value [3] = nan",
-                          "finite and >= 0");
+                          "must be finite");
   bad = good;
   bad[0] = -bad[0] - 0.1f;
   EXPECT_INVALID_ARGUMENT(
@@ -242,7 +263,7 @@ TEST(MaterialRecognizerTest, BadFeatureVectorsAreRejected) {
   bad = good;
   for (float& v : bad) v *= 2.0f;
   EXPECT_INVALID_ARGUMENT(recognizer.AddReferenceFeatures("x", bad),
-                          "features: block hue_saturation has squared norm 4",
+                          "features: block chromaticity has squared norm 4",
                           "must be 1");
   EXPECT_EQ(recognizer.reference_count(), 0u);
 }
@@ -293,7 +314,7 @@ TEST(MaterialRecognizerTest, RemoveMaterialAndClear) {
   ASSERT_EQ(r.candidates.size(), 1u);
   EXPECT_EQ(r.candidates[0].material, "b");
   // The remaining reference kept its own features.
-  EXPECT_NEAR(recognizer.Recognize(b).candidates[0].score, 1.0, 1e-5);
+  EXPECT_NEAR(recognizer.Recognize(b).candidates[0].similarity, 1.0, 1e-5);
   recognizer.Clear();
   EXPECT_EQ(recognizer.reference_count(), 0u);
   EXPECT_TRUE(recognizer.Recognize(a).unknown);
@@ -314,7 +335,13 @@ TEST(MaterialRecognizerTest, ThresholdAndMarginDecideUnknown) {
     options.unknown_threshold = 1.0;
     MaterialRecognizer recognizer(options);
     recognizer.AddReference("x", other);
-    EXPECT_TRUE(recognizer.Recognize(image).unknown);
+    const RecognitionResult r = recognizer.Recognize(image);
+    EXPECT_TRUE(r.unknown);
+    // Says why: the closest material, its score and the operating point.
+    EXPECT_EQ(r.reason.rfind("closest is x at 0.", 0), 0u) << r.reason;
+    EXPECT_NE(r.reason.find(", below the 1.00 operating point"),
+              std::string::npos)
+        << r.reason;
   }
   {
     // Two ids with the same reference: a perfect but ambiguous match.
@@ -338,11 +365,12 @@ TEST(MaterialRecognizerTest, InvariantToResolutionAndBrightness) {
   recognizer.AddReference("wood", Encode(texture));
   cv::Mat bigger;
   cv::resize(texture, bigger, cv::Size(), 2.0, 2.0, cv::INTER_CUBIC);
-  EXPECT_GT(recognizer.Recognize(Encode(bigger, ".jpg")).candidates[0].score,
-            0.9);
+  EXPECT_GT(
+      recognizer.Recognize(Encode(bigger, ".jpg")).candidates[0].similarity,
+      0.9);
   cv::Mat darker;
   texture.convertTo(darker, -1, 0.7);
-  EXPECT_GT(recognizer.Recognize(Encode(darker)).candidates[0].score, 0.9);
+  EXPECT_GT(recognizer.Recognize(Encode(darker)).candidates[0].similarity, 0.9);
 }
 
 TEST(MaterialRecognizerTest, MovedRecognizerKeepsItsReferences) {

@@ -489,6 +489,46 @@ async function uploadFile(kind) {
   if (kind === 'csv') { state.version = out.version || null; await loadMaterial(id); }
 }
 
+// ---------------------------------------------------------- recognition ----
+
+// POST /v1/recognize: the verdict with its reason, and the candidates with
+// their calibrated scores (docs/recognition.md). Unsure answers say so.
+async function recognizePhoto() {
+  const file = $('recognize-file').files[0];
+  showError($('recognize-error'), '');
+  $('recognize-verdict').hidden = true;
+  $('recognize-candidates').hidden = true;
+  if (!file) { showError($('recognize-error'), 'choose a photo first'); return; }
+  $('recognize-status').textContent = 'recognising ' + file.name + '…';
+  $('recognize-run').disabled = true;
+  const r = await upload('/v1/recognize', file, file.type || 'application/octet-stream', () => {});
+  $('recognize-run').disabled = false;
+  if (!r.ok) {
+    $('recognize-status').textContent = file.name + ': rejected (HTTP ' + r.status + ')';
+    showError($('recognize-error'), r.text);
+    return;
+  }
+  let out = {};
+  try { out = JSON.parse(r.text); } catch (e) { showError($('recognize-error'), r.text); return; }
+  $('recognize-status').textContent = file.name;
+  const v = $('recognize-verdict');
+  const best = (out.candidates || [])[0];
+  v.textContent = (out.unknown ? 'Unknown material: ' : 'Recognised ' + (best ? best.material : '') + ': ') +
+    (out.reason || '') + (out.operating_point !== undefined ? ' (operating point ' + fmt(out.operating_point, 2) + ')' : '');
+  v.className = out.unknown ? 'notice' : 'muted';
+  v.hidden = false;
+  const body = $('recognize-candidates').tBodies[0];
+  body.replaceChildren();
+  for (const c of out.candidates || []) {
+    const a = el('a', c.material);
+    a.href = '#/m/' + enc(c.material);
+    const td = el('td');
+    td.appendChild(a);
+    body.appendChild(row([td, fmt(c.score, 2), fmt(c.similarity, 3)]));
+  }
+  $('recognize-candidates').hidden = !(out.candidates || []).length;
+}
+
 // ---------------------------------------------------------------- jobs ----
 
 async function pollJobs() {
@@ -548,6 +588,7 @@ function init() {
   $('upload-csv').addEventListener('click', () => uploadFile('csv'));
   $('upload-image').addEventListener('click', () => uploadFile('image'));
   $('run-diagnose').addEventListener('click', runDiagnosis);
+  $('recognize-run').addEventListener('click', recognizePhoto);
   $('m-fingertip').addEventListener('change', (e) => { state.fingertip = e.target.value; state.version = null; loadModel(); });
   $('m-version').addEventListener('change', (e) => { state.version = Number(e.target.value); loadModel(); });
   $('jobs-open').addEventListener('change', pollJobs);

@@ -123,7 +123,8 @@ void DaemonConfig::LoadFile(const std::string& path) {
                                   "lcm_keys",
                                   "lcm_keys_file",
                                   "lcm_allow_unsigned",
-                                  "lcm_max_skew_s"};
+                                  "lcm_max_skew_s",
+                                  "recognition_operating_point"};
     if (std::find(std::begin(kKeys), std::end(kKeys), it.key()) ==
         std::end(kKeys)) {
       throw std::invalid_argument(path + ": unknown key '" + it.key() + "'");
@@ -154,6 +155,13 @@ void DaemonConfig::LoadFile(const std::string& path) {
     if (!j["lcm_max_skew_s"].is_number())
       throw std::invalid_argument(path + ": lcm_max_skew_s: expected a number");
     lcm_max_skew_s = j["lcm_max_skew_s"].get<double>();
+  }
+  if (j.contains("recognition_operating_point")) {
+    if (!j["recognition_operating_point"].is_number())
+      throw std::invalid_argument(
+          path + ": recognition_operating_point: expected a number");
+    recognition_operating_point =
+        j["recognition_operating_point"].get<double>();
   }
   if (j.contains("lcm_keys")) {
     // Checked here (hex, length); kept as hex like the file.
@@ -212,6 +220,11 @@ void DaemonConfig::Validate() const {
   if (!(plan.min_span_pct > 0 && plan.min_span_pct <= 100))
     throw std::invalid_argument("plan: min_span_pct must be in (0, 100]");
   CheckLuGrePlan(plan, "plan: ");
+  if (!(recognition_operating_point <= 1.0))
+    throw std::invalid_argument(
+        "recognition_operating_point = " +
+        std::to_string(recognition_operating_point) +
+        ": must be in [0, 1] (negative: the calibrated default)");
   if (lcm_url.empty())
     throw std::invalid_argument("--lcm: empty (give a provider URL or none)");
   if (!(lcm_max_skew_s > 0 && lcm_max_skew_s <= 3600))
@@ -275,7 +288,8 @@ int Daemon::Start() {
   RegisterLuGreFeature(*http_, *library_);
   RegisterDiagnosisRoutes(*http_, *library_);
   RegisterJointRoutes(*http_, *library_);
-  RecognizeImageFn recognize = RegisterRecognitionRoutes(*http_, *library_);
+  RecognizeImageFn recognize = RegisterRecognitionRoutes(
+      *http_, *library_, config_.recognition_operating_point);
   RegisterExportRoutes(*http_, *library_);
   RegisterConsoleRoutes(*http_, *library_);
   RegisterAuthRoutes(*http_, *auth_, library_->store());

@@ -2,7 +2,9 @@
 // register reference images per material; robots send an image and get
 // ranked candidates, or "unknown" plus the test stroke to perform.
 #include <cstring>
+#include <iostream>
 #include <memory>
+#include <stdexcept>
 
 #include "frictiond/server/routes.h"
 
@@ -52,19 +54,44 @@ std::string ImageMime(const HttpRequest& req) {
 }  // namespace
 
 RecognizeImageFn RegisterRecognitionRoutes(HttpServer& http,
-                                           FrictionLibrary& lib) {
-  auto recognizer = std::make_shared<MaterialRecognizer>();
+                                           FrictionLibrary& lib,
+                                           double operating_point) {
+  RecognizerOptions options;
+  if (!(operating_point < 0.0)) {
+    if (!(operating_point <= 1.0))
+      throw std::invalid_argument(
+          "recognition_operating_point = " + std::to_string(operating_point) +
+          " (must be in [0, 1], or negative for the calibrated default)");
+    options.unknown_threshold = operating_point;
+  }
+  auto recognizer = std::make_shared<MaterialRecognizer>(options);
   int stale = 0;
   for (const ImageRecord& img : lib.store().ListImages()) {
     std::vector<float> f;
+    bool used = false;
     if (DecodeFeatures(img.features, &f)) {
-      recognizer->AddReferenceFeatures(img.material, std::move(f));
-    } else {
-      ++stale;  // features of another extractor version: re-register those
+      try {
+        recognizer->AddReferenceFeatures(img.material, std::move(f));
+        used = true;
+      } catch (const std::invalid_argument& e) {
+        std::cerr << "frictiond: recognition: stored image " << img.id
+                  << " of '" << img.material << "' skipped: " << e.what()
+                  << "\n";
+      }
+    }
+    if (!used) {
+      ++stale;  // another extractor version or invalid: re-register those
                 // images
     }
   }
-  (void)stale;
+  if (stale > 0) {
+    std::cerr << "frictiond: recognition: " << stale
+              << " stored reference image(s) have unusable features (another "
+                 "feature version (now v"
+              << MaterialRecognizer::kFeatureVersion
+              << ") or invalid) and are not used; upload them again with POST "
+                 "/v1/materials/{id}/images\n";
+  }
   http.Route("POST",
              "/v1/materials/{id}/images",
              [&lib, recognizer](const HttpRequest& req) {
@@ -109,10 +136,18 @@ RecognizeImageFn RegisterRecognitionRoutes(HttpServer& http,
         for (const RecognitionCandidate& c : r.candidates) {
           if (!lib.store().GetMaterial(c.material))
             continue;  // deleted since registration
-          candidates.push_back({{"material", c.material}, {"score", c.score}});
+          candidates.push_back({{"material", c.material},
+                                {"score", c.score},
+                                {"similarity", c.similarity}});
         }
         const bool unknown = r.unknown || candidates.empty();
-        json out = {{"unknown", unknown}, {"candidates", candidates}};
+        json out = {{"unknown", unknown},
+                    {"candidates", candidates},
+                    {"operating_point", r.operating_point},
+                    {"reason",
+                     candidates.empty() && !r.candidates.empty()
+                         ? "every close material has been deleted"
+                         : r.reason}};
         if (unknown) {
           // The workflow of paper 000 Fig. 11: an unknown material needs a test
           // stroke.
@@ -140,6 +175,8 @@ RecognizeImageFn RegisterRecognitionRoutes(HttpServer& http,
         out.candidates.emplace_back(c.material, c.score);
     }
     out.unknown = r.unknown || out.candidates.empty();
+    out.reason = r.reason;
+    out.operating_point = r.operating_point;
     return out;
   };
 }
@@ -147,7 +184,8 @@ RecognizeImageFn RegisterRecognitionRoutes(HttpServer& http,
 #else
 
 RecognizeImageFn RegisterRecognitionRoutes(HttpServer& http,
-                                           FrictionLibrary& /*lib*/) {
+                                           FrictionLibrary& /*lib*/,
+                                           double /*operating_point*/) {
   auto unavailable = [](const HttpRequest&) -> HttpResponse {
     return HttpResponse::Error(
         501,

@@ -7,21 +7,29 @@
 ///
 /// Method (details and measured accuracy in docs/recognition.md): the image
 /// is decoded (PNG or JPEG only), resized to a fixed working size, and
-/// described by brightness-insensitive colour and texture histograms:
-///   - a hue-saturation histogram (hue and saturation do not change when the
-///     light gets brighter or dimmer),
-///   - rotation-invariant uniform LBP histograms (riu2, 8 samples) at radii
-///     1, 2 and 3 on the working image and radii 1 and 2 at half resolution
-///     (LBP only compares a pixel with its neighbours, so it is unchanged by
-///     any monotonic brightness change),
-///   - a histogram of intensity relative to the image median (contrast
-///     shape).
-/// Sensor-clipped pixels (grey >= 250) are left out of the texture and
-/// intensity histograms.
-/// Each histogram is compared with the Hellinger distance H in [0, 1]; the
-/// similarity of two images is score = 1 - sum_b w_b H_b (weights sum to 1),
-/// so score is in [0, 1] and 1 means identical histograms. A material's score
-/// is the best score over its references (1-nearest neighbour per material).
+/// described by histograms chosen for what a robot's camera changes:
+///   - light colour: a grey-world chromaticity histogram (each channel
+///     divided by its mean, so a warmer or cooler lamp cancels) plus the mean
+///     colour compared with a tolerance as large as a lamp change;
+///   - light intensity and falloff: grey divided by a wide Gaussian estimate
+///     of the local light level before any texture histogram;
+///   - in-plane rotation: rotation-invariant uniform LBP (riu2, 8 samples) at
+///     radii 1, 2, 3 on the working image and 1, 2 at half and quarter
+///     resolution;
+///   - distance: every reference is described at nine magnifications
+///     (0.5 .. 2, steps of 2^(1/4)), and a query is compared with each;
+///   - partial occlusion: a query is also described without each of its
+///     four quadrants, and the best of these descriptions counts.
+/// Each histogram is compared by histogram intersection; the similarity of
+/// two images is in [0, 1] (1 = identical histograms) and a material's
+/// similarity is the best over its references, their scales and the query's
+/// descriptions.
+/// The reported score is a calibrated probability that the material is the
+/// right one (logistic (Platt) fit of the similarity on held-out tuning
+/// views, docs/recognition.md); a query is accepted when the best score
+/// reaches the operating point RecognizerOptions::unknown_threshold, chosen
+/// on the tuning views for a stated false-accept rate on materials not in the
+/// library.
 ///
 /// Usage:
 /// @code
@@ -49,35 +57,60 @@ class RecognizerImpl;
 /// One candidate material for a query image.
 struct RecognitionCandidate {
   std::string material;  ///< material id given at registration
-  double score = 0.0;    ///< similarity in [0, 1], higher = more similar
+  /// Calibrated probability in [0, 1] that this is the right material:
+  /// 1 / (1 + exp(-calibration_slope * (e - calibration_midpoint))) with the
+  /// evidence e = similarity + (similarity - the best similarity of the
+  /// other materials) (e = similarity when only one material is
+  /// registered).
+  double score = 0.0;
+  /// Raw similarity in [0, 1] (1 = identical histograms), best over the
+  /// material's references and scales.
+  double similarity = 0.0;
 };
 
 /// Answer to MaterialRecognizer::Recognize.
 struct RecognitionResult {
-  /// True when no registered material is similar enough: the best score is
-  /// below RecognizerOptions::unknown_threshold, the margin over the second
-  /// material is below RecognizerOptions::min_margin, or nothing is
-  /// registered. The candidates are still reported (they are the closest
-  /// materials, not matches).
+  /// True when no registered material is likely enough: the best score is
+  /// below RecognizerOptions::unknown_threshold (the operating point), the
+  /// margin over the second material is below RecognizerOptions::min_margin,
+  /// or nothing is registered. The candidates are still reported (they are
+  /// the closest materials, not matches).
   bool unknown = true;
   /// Up to RecognizerOptions::max_candidates distinct materials, best first
   /// (ties broken by material id).
   std::vector<RecognitionCandidate> candidates;
+  /// Why, in one sentence, e.g. "closest is wood at 0.62, below the 0.80
+  /// operating point" (unknown) or "wood at 0.97, at or above the 0.80
+  /// operating point" (accepted).
+  std::string reason;
+  /// The operating point the decision used (RecognizerOptions).
+  double operating_point = 0.0;
 };
 
 /// Matching options. Feature extraction itself has no options, so features
 /// stored by one configuration stay valid in any other.
 struct RecognizerOptions {
-  /// A query whose best material score is below this is unknown. Calibrated
-  /// on the GIMP texture set (docs/recognition.md): correct matches under
-  /// rotation, 0.7-1.4 scale and 0.7-1.3 brightness mostly score above it,
-  /// unregistered textures mostly below. Must be in [0, 1].
-  double unknown_threshold = 0.90;
+  /// Slope of the score calibration [1/similarity] (Platt scaling), fitted on
+  /// the tuning views of recognition/test/recognition_calibration_test.cc.
+  static constexpr double kCalibrationSlope = 31.93;
+  /// Similarity at which the calibrated score is 0.5.
+  static constexpr double kCalibrationMidpoint = 0.9306;
+  /// Default operating point: the calibrated score at which at most 3 % of
+  /// the tuning views of materials not in the library were accepted.
+  static constexpr double kDefaultOperatingPoint = 0.81;
+
+  /// The operating point: a query whose best calibrated score is below this
+  /// is unknown. Must be in [0, 1].
+  double unknown_threshold = kDefaultOperatingPoint;
   /// A query is also unknown when best - second best material score is below
   /// this (a ratio-style ambiguity test). 0 disables it. Must be in [0, 1].
   double min_margin = 0.0;
   /// Maximum number of candidates returned. Must be >= 1.
   int max_candidates = 5;
+  /// Score calibration (see RecognitionCandidate::score). Must be > 0.
+  double calibration_slope = kCalibrationSlope;
+  /// Score calibration. Must be in [0, 1].
+  double calibration_midpoint = kCalibrationMidpoint;
 
   /// Returns true when all fields satisfy their rules; otherwise returns
   /// false and, when `why` is not null, sets it to a message naming the
@@ -119,12 +152,13 @@ class MaterialRecognizer {
   MaterialRecognizer(const MaterialRecognizer&) = delete;
   MaterialRecognizer& operator=(const MaterialRecognizer&) = delete;
 
-  /// Number of floats in a feature vector (fixed by kFeatureVersion).
+  /// Number of floats in a feature vector returned by ExtractFeatures (the
+  /// reference pyramid: nine scales; fixed by kFeatureVersion).
   static std::size_t feature_size();
   /// Version of the feature layout and extraction method. Persisted feature
   /// vectors must be discarded (and recomputed from the images) when it
   /// changes.
-  static constexpr int kFeatureVersion = 1;
+  static constexpr int kFeatureVersion = 2;
 
   /// Decodes `encoded_image` and registers it as a reference for
   /// `material_id`. A material may have any number of references; several
@@ -162,7 +196,8 @@ class MaterialRecognizer {
   /// @throws std::invalid_argument "image: ..." as AddReference.
   RecognitionResult Recognize(std::string_view encoded_image) const;
 
-  /// Same as Recognize, from a vector returned by ExtractFeatures.
+  /// Same as Recognize, from a vector returned by ExtractFeatures (its
+  /// magnification-1 scale is the query).
   /// @throws std::invalid_argument "features: ..." as AddReferenceFeatures.
   RecognitionResult RecognizeFeatures(const std::vector<float>& features) const;
 

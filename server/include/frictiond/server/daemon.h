@@ -36,6 +36,10 @@ struct DaemonConfig {
   bool lcm_allow_unsigned = false;
   /// Timestamp window of signed LCM writes [s] (--lcm-max-skew-s).
   double lcm_max_skew_s = 30.0;
+  /// Image recognition: calibrated score a material needs to be accepted
+  /// (config key "recognition_operating_point", in [0, 1]); negative = the
+  /// calibrated default (docs/recognition.md, "Operating point").
+  double recognition_operating_point = -1.0;
 
   /// The LCM keys as raw bytes (lcm_keys plus lcm_keys_file).
   /// @throws std::invalid_argument naming the file or robot and the rule.
@@ -56,7 +60,7 @@ struct DaemonConfig {
   /// "lugre_fast_strokes","lugre_fast_accel_mm_s2","lugre_fast_peak_mm_s",
   /// "lugre_rest_s"} (StrokePlanOptions),
   /// "lcm_keys": {"robot": "hex"}, "lcm_keys_file", "lcm_allow_unsigned",
-  /// "lcm_max_skew_s"}.
+  /// "lcm_max_skew_s", "recognition_operating_point"}.
   /// Keys not given keep their current value.
   /// @throws std::invalid_argument naming the file, key and rule.
   void LoadFile(const std::string& path);

@@ -36,7 +36,13 @@ void RegisterJointRoutes(HttpServer& http, FrictionLibrary& library);
 /// registered).
 struct ImageRecognition {
   bool unknown = true;
+  /// (material, calibrated score in [0, 1]), best first.
   std::vector<std::pair<std::string, double>> candidates;
+  /// Why accepted or unknown, e.g. "closest is wood at 0.62, below the 0.84
+  /// operating point" (docs/recognition.md).
+  std::string reason;
+  /// The operating point (score threshold) the decision used.
+  double operating_point = 0.0;
 };
 /// The recognition hook: image bytes (PNG or JPEG) -> ImageRecognition.
 /// @throws std::invalid_argument for an image that cannot be decoded.
@@ -45,9 +51,13 @@ using RecognizeImageFn =
 
 /// /images, /recognize. Returns the recognition hook over the same
 /// registered references (for the LCM endpoint), or an empty function when
-/// built without OpenCV.
+/// built without OpenCV. `operating_point`: the calibrated score a candidate
+/// needs to be accepted, in [0, 1]; negative = the calibrated default
+/// (RecognizerOptions::kDefaultOperatingPoint, docs/recognition.md).
+/// @throws std::invalid_argument for an operating point above 1 or NaN.
 RecognizeImageFn RegisterRecognitionRoutes(HttpServer& http,
-                                           FrictionLibrary& library);
+                                           FrictionLibrary& library,
+                                           double operating_point = -1.0);
 /// GET /v1/materials/{id}/export (simulator formats) and
 /// GET /v1/pairs/{fingertip}/{object}/friction (pair-level answer); see
 /// docs/export.md.
