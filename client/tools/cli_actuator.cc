@@ -1,5 +1,6 @@
 // Measured actuator logs (issue 20, docs/actuator.md): `friction actuator
 // fit`, `simulate` and `diagnose`, all local (no daemon).
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -151,6 +152,88 @@ void RegisterActuatorCommands(CLI::App& app, Globals& /*g*/) {
           for (const json& f : j.at("findings"))
             std::cout << "- " << f.value("summary", "") << "\n";
         }
+      });
+    });
+  }
+  {
+    auto* cmd = actuator->add_subcommand(
+        "compare",
+        "held-out MAE per log: our Coulomb-viscous and extended fits "
+        "(leave-one-log-out and leave-one-trajectory-out) beside BAM's "
+        "published parameter files replayed in our simulator");
+    static std::vector<std::string> files, bam_files;
+    static int budget = 600;
+    cmd->add_option("LOG", files, "log JSON files")->required();
+    cmd->add_option("--params-bam", bam_files, "BAM parameter files");
+    cmd->add_option("--fold-budget",
+                    budget,
+                    "Nelder-Mead evaluations per held-out fold (default 600)");
+    cmd->callback([] {
+      RunCommand([&] {
+        if (budget < 10 || budget > 100000)
+          throw std::invalid_argument(
+              "--fold-budget = " + std::to_string(budget) +
+              " (must be in [10, 100000])");
+        const std::vector<ActuatorLog> logs = ReadLogs(files);
+        std::vector<const ActuatorLog*> all;
+        for (const ActuatorLog& l : logs) all.push_back(&l);
+        std::vector<int> loo(logs.size()), shape(logs.size());
+        std::vector<std::string> shapes;
+        for (std::size_t i = 0; i < logs.size(); ++i) {
+          loo[i] = static_cast<int>(i);
+          auto it = std::find(shapes.begin(), shapes.end(), logs[i].trajectory);
+          if (it == shapes.end()) {
+            shapes.push_back(logs[i].trajectory);
+            it = shapes.end() - 1;
+          }
+          shape[i] = static_cast<int>(it - shapes.begin());
+        }
+        ActuatorFitOptions full;
+        ActuatorFitOptions fold;
+        fold.nm_max_evaluations = budget;
+        fold.nm_restarts = 0;
+        fold.lm_iterations = 2;
+        json rows = json::array();
+        json columns = json::object();
+        auto add_column = [&](const std::string& name,
+                              const std::vector<double>& v) {
+          columns[name] = v;
+        };
+        const std::vector<ActuatorVariant> variants = {
+            LawVariant(ActuatorFrictionLaw::kCoulombViscous),
+            AutoActuatorVariant()};
+        json in_sample = json::object();
+        for (const ActuatorVariant& v : variants) {
+          const ActuatorFitResult f = FitActuatorVariant(all, v, full);
+          in_sample[v.name] = f.mae_rad;
+          add_column(v.name + " loo",
+                     CalcHeldOutMae(logs, v, loo, fold, &f.model));
+          add_column(v.name + " lso",
+                     CalcHeldOutMae(logs, v, shape, fold, &f.model));
+        }
+        for (const std::string& b : bam_files) {
+          const ActuatorModel m = ParseBamParams(ReadFileOrFail(b));
+          std::vector<double> v;
+          for (const ActuatorLog& l : logs)
+            v.push_back(SimulateActuatorLog(m, l));
+          add_column("bam " + std::filesystem::path(b).stem().string(), v);
+        }
+        for (std::size_t i = 0; i < logs.size(); ++i) {
+          json r = {{"log", logs[i].name}};
+          for (auto& [k, v] : columns.items()) r[k] = v[i];
+          rows.push_back(r);
+        }
+        json mean = json::object();
+        for (auto& [k, v] : columns.items()) {
+          double s = 0;
+          for (const json& x : v) s += x.get<double>();
+          mean[k] = s / static_cast<double>(v.size());
+        }
+        std::cout << json{{"rows", rows},
+                          {"mean", mean},
+                          {"in_sample", in_sample}}
+                         .dump(1)
+                  << "\n";
       });
     });
   }
