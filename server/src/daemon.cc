@@ -275,6 +275,7 @@ int Daemon::Start() {
   RegisterLuGreFeature(*http_, *library_);
   RegisterDiagnosisRoutes(*http_, *library_);
   RegisterJointRoutes(*http_, *library_);
+  RegisterActuatorRoutes(*http_, *library_);
   RecognizeImageFn recognize = RegisterRecognitionRoutes(*http_, *library_);
   RegisterExportRoutes(*http_, *library_);
   RegisterConsoleRoutes(*http_, *library_);
