@@ -34,6 +34,7 @@ constexpr ActuatorParamInfo kParamInfo[] = {
     {"r_temp_coeff", -0.02, 0.05},
     {"backlash", 0.0, 0.1},
     {"current_limit", 0.0, 5.0},
+    {"command_delay", 0.0, 0.05},
     {"friction_base", 0.0, 0.3},
     {"friction_viscous", 0.0, 0.2},
     {"friction_stribeck", 0.0, 0.3},
@@ -177,6 +178,7 @@ double SimulateActuatorLog(const ActuatorModel& m,
   const double kt = m.kt;
   const ActuatorFrictionParams& fp = m.friction;
   const bool lugre = m.law == ActuatorFrictionLaw::kLuGre;
+  const double delay_steps = std::max(0.0, m.command_delay_s / dt);
   const double half_gap = 0.5 * m.backlash_rad;
   const bool backlash = half_gap > 0 && m.armature_kg_m2 > 0;
   if (trace) {
@@ -199,7 +201,19 @@ double SimulateActuatorLog(const ActuatorModel& m,
                  m.r_ohm * (1.0 + m.r_temp_coeff_per_c *
                                       (log.temp_c[k] - kResistanceRefTempC)));
     const bool enabled = log.torque_enable[k] != 0;
-    double duty = gain * (log.goal_rad[k] - q);
+    double goal = log.goal_rad[k];
+    if (delay_steps > 0) {
+      const double back = static_cast<double>(k) - delay_steps;
+      if (back <= 0) {
+        goal = log.goal_rad[0];
+      } else {
+        const std::size_t i = static_cast<std::size_t>(back);
+        const double w = back - static_cast<double>(i);
+        goal = log.goal_rad[i] +
+               w * (log.goal_rad[std::min(i + 1, n - 1)] - log.goal_rad[i]);
+      }
+    }
+    double duty = gain * (goal - q);
     if (m.current_limit_a > 0) {
       const double center = kt * (backlash ? dqm : dq) / log.vin_v;
       const double span = r * m.current_limit_a / log.vin_v;
@@ -304,6 +318,8 @@ double& ActuatorParamRef(ActuatorModel& m, ActuatorParam p) {
       return m.backlash_rad;
     case ActuatorParam::kCurrentLimit:
       return m.current_limit_a;
+    case ActuatorParam::kCommandDelay:
+      return m.command_delay_s;
     case ActuatorParam::kFrictionBase:
       return f.friction_base;
     case ActuatorParam::kFrictionViscous:

@@ -184,6 +184,22 @@ TEST(ActuatorSimTest, RecoversAPlantedCoulombViscousModel) {
   ASSERT_EQ(r.stderr_.size(), r.free.size());
 }
 
+TEST(ActuatorSimTest, CommandDelayShiftsTheGoal) {
+  ActuatorLog log = MakeLog(400, 600, SinSin, true);
+  ActuatorLog shifted = log;
+  for (std::size_t k = 0; k < log.size(); ++k)
+    shifted.goal_rad[k] = log.goal_rad[k < 2 ? 0 : k - 2];
+  ActuatorModel m =
+      MakeDefaultActuatorModel(ActuatorFrictionLaw::kCoulombViscous);
+  ActuatorRolloutTrace a, b;
+  m.command_delay_s = 2 * log.dt_s;
+  SimulateActuatorLog(m, log, &a);
+  m.command_delay_s = 0;
+  SimulateActuatorLog(m, shifted, &b);
+  for (std::size_t k = 0; k < log.size(); ++k)
+    ASSERT_NEAR(a.q_rad[k], b.q_rad[k], 1e-12) << k;
+}
+
 TEST(ActuatorSimTest, PhaseShapeSplitFindsAShift) {
   ActuatorLog log = MakeLog(400, 600, SinSin, true);
   for (std::size_t k = 0; k < log.size(); ++k)

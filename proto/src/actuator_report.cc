@@ -42,6 +42,9 @@ void SeedExtra(ActuatorModel* m, ActuatorParam p) {
     case ActuatorParam::kBacklash:
       if (!(m->backlash_rad > 0)) m->backlash_rad = 0.01;
       break;
+    case ActuatorParam::kCommandDelay:
+      if (!(m->command_delay_s > 0)) m->command_delay_s = 0.01;
+      break;
     default:
       break;
   }
@@ -293,6 +296,11 @@ json DiagnoseActuatorLogs(const std::vector<ActuatorLog>& logs) {
         L::kCoulombViscous,
         {P::kCurrentLimit}},
        "firmware current limit saturates the motor torque"},
+      {"command_delay",
+       {"coulomb_viscous+command_delay",
+        L::kCoulombViscous,
+        {P::kCommandDelay}},
+       "the goal reaches the controller late (bus and firmware latency)"},
   };
   json findings = json::array();
   for (const Candidate& c : candidates) {

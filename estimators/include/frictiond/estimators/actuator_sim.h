@@ -29,8 +29,11 @@
 /// first position and speed. The error is mean |q_sim - q_measured| over the
 /// entries (q_sim taken before each step, as upstream).
 ///
+/// Command delay d >= 0: the controller sees goal(t_k - d), linearly
+/// interpolated between entries (goal(t_0) before the log starts).
+///
 /// Departures from upstream BAM (arXiv 2410.08650): semi-implicit Euler
-/// (upstream adds 1/2 a dt^2 to q), no command delay, optional gain scale,
+/// (upstream adds 1/2 a dt^2 to q), optional gain scale,
 /// resistance temperature coefficient and backlash (zero by default, which
 /// is upstream's model).
 ///
@@ -98,6 +101,7 @@ struct ActuatorModel {
   double r_temp_coeff_per_c = 0.0;  ///< c_R [1/C] (copper: 0.0039)
   double backlash_rad = 0.0;        ///< b, total gearbox play [rad], >= 0
   double current_limit_a = 0.0;     ///< firmware current limit [A]; 0 = none
+  double command_delay_s = 0.0;     ///< goal seen this late [s] (bus, firmware)
   ActuatorFrictionParams friction;
 };
 
@@ -136,6 +140,7 @@ enum class ActuatorParam {
   kRTempCoeff,
   kBacklash,
   kCurrentLimit,
+  kCommandDelay,
   kFrictionBase,
   kFrictionViscous,
   kFrictionStribeck,
