@@ -16,9 +16,12 @@ using json = nlohmann::json;
 const ActuatorFrictionLaw kAutoActuatorLaw = ActuatorFrictionLaw::kExtended;
 
 ActuatorVariant AutoActuatorVariant() {
-  return {"extended+current_limit",
+  return {"extended+current_limit+delay+backlash+r_temp",
           ActuatorFrictionLaw::kExtended,
-          {ActuatorParam::kCurrentLimit}};
+          {ActuatorParam::kCurrentLimit,
+           ActuatorParam::kCommandDelay,
+           ActuatorParam::kBacklash,
+           ActuatorParam::kRTempCoeff}};
 }
 
 ActuatorVariant LawVariant(ActuatorFrictionLaw law) {
@@ -112,6 +115,14 @@ ActuatorFitResult FitActuatorVariant(
       }
     }
     start.law = variant.law;
+  } else if (variant.extra.size() > 1) {
+    // Three stages: the law alone (from Coulomb-viscous), then the extras.
+    ActuatorVariant law_only = variant;
+    law_only.extra.clear();
+    ActuatorFitOptions o = options;
+    o.bootstrap = 0;
+    o.lm_iterations = 2;
+    start = FitActuatorVariant(logs, law_only, o).model;
   } else {
     const ActuatorModel cv_start =
         MakeDefaultActuatorModel(ActuatorFrictionLaw::kCoulombViscous);
