@@ -52,6 +52,8 @@ void RegisterLuGreCommands(CLI::App& app, Globals& g);  // cli_lugre.cc
 void RegisterExportCommands(CLI::App& app,
                             Globals& g);  // cli_export.cc: export, pair
 void RegisterJointCommands(CLI::App& app, Globals& g);  // cli_joint.cc
+void RegisterActuatorCommands(CLI::App& app,
+                              Globals& g);  // cli_actuator.cc: actuator
 void RegisterTokenCommands(CLI::App& app,
                            Globals& g);  // cli_token.cc: token, audit
 void RegisterPaper000Commands(

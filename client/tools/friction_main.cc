@@ -32,6 +32,7 @@ int main(int argc, char** argv) {
   frictiond::cli::RegisterJointCommands(app, g);
   frictiond::cli::RegisterPaper000Commands(app, g);
   frictiond::cli::RegisterTokenCommands(app, g);
+  frictiond::cli::RegisterActuatorCommands(app, g);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

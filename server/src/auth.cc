@@ -32,6 +32,9 @@ const std::vector<RoutePolicy> kPolicies = {
     {"POST", "/v1/materials/{id}/strokes", Role::kRobot},
     {"POST", "/v1/materials/{id}/diagnose", Role::kRobot},
     {"POST", "/v1/materials/{id}/joint-data", Role::kRobot},
+    {"POST", "/v1/materials/{id}/actuator-logs", Role::kRobot},
+    // Simulating a stored actuator model changes nothing: a lookup.
+    {"POST", "/v1/materials/{id}/actuator-simulate", Role::kReader},
     // Operators: the library's contents and access to it.
     {"PUT", "/v1/materials/{id}", Role::kOperator},
     {"DELETE", "/v1/materials/{id}", Role::kOperator},

@@ -288,6 +288,7 @@ int Daemon::Start() {
   RegisterLuGreFeature(*http_, *library_);
   RegisterDiagnosisRoutes(*http_, *library_);
   RegisterJointRoutes(*http_, *library_);
+  RegisterActuatorRoutes(*http_, *library_);
   RecognizeImageFn recognize = RegisterRecognitionRoutes(
       *http_, *library_, config_.recognition_operating_point);
   RegisterExportRoutes(*http_, *library_);

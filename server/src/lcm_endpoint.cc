@@ -33,6 +33,7 @@
 #include "frictiond/material_reply_v1.hpp"
 #include "frictiond/model_update_v1.hpp"
 #include "frictiond/proto/lcm_channels.h"
+#include "frictiond/proto/lcm_codec.h"
 #include "frictiond/proto/lugre_json.h"
 #include "frictiond/stroke_chunk_v1.hpp"
 #include "frictiond/stroke_chunk_v2.hpp"
@@ -172,16 +173,21 @@ class LcmEndpointImpl {
     if (options_.max_strokes_per_job < 1)
       throw std::invalid_argument("max_strokes_per_job must be >= 1");
     publisher_ = std::make_shared<LcmPublisher>(&lcm_);
-    lcm_.subscribe(kLcmQueryChannel, &LcmEndpointImpl::OnQuery, this);
-    lcm_.subscribe(kLcmStrokeChannel, &LcmEndpointImpl::OnChunk, this);
+    lcm_.subscribe(kLcmQueryChannel, &LcmEndpointImpl::OnQueryBytes, this);
+    lcm_.subscribe(kLcmStrokeChannel, &LcmEndpointImpl::OnChunkBytes, this);
     lcm_.subscribe(
-        kLcmSignedStrokeChannel, &LcmEndpointImpl::OnSignedChunk, this);
+        kLcmSignedStrokeChannel, &LcmEndpointImpl::OnSignedChunkBytes, this);
     // The drop counters exist (at 0) from the start.
     for (LcmDropReason r : {LcmDropReason::kForged,
                             LcmDropReason::kReplayed,
                             LcmDropReason::kStale,
                             LcmDropReason::kUnknownRobot,
-                            LcmDropReason::kUnsigned})
+                            LcmDropReason::kUnsigned,
+                            LcmDropReason::kMalformed,
+                            LcmDropReason::kTruncated,
+                            LcmDropReason::kWrongHash,
+                            LcmDropReason::kOversized,
+                            LcmDropReason::kInternal})
       Count(DropCounter(r), 0);
     Count("lcm_signed_accepted_total", 0);
     // Tell the fleet about every new model version, from any endpoint.
@@ -266,21 +272,135 @@ class LcmEndpointImpl {
   }
 
   // --- queries --------------------------------------------------------------
-  void OnQuery(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+  // liblcm's callbacks: no exception may cross into liblcm (its C frames
+  // cannot unwind, and an exception there left it in a state that aborted
+  // the daemon on the next message). Every failure is counted as
+  // reason="internal" and answered; the endpoint keeps serving.
+  template <class Handler>
+  void Guarded(const char* type,
+               const lcm::ReceiveBuffer* rbuf,
+               Handler handler) noexcept {
+    try {
+      try {
+        handler(static_cast<const std::uint8_t*>(rbuf->data),
+                static_cast<std::size_t>(rbuf->data_size));
+      } catch (const std::exception& e) {
+        Count(DropCounter(LcmDropReason::kInternal));
+        std::cerr << "frictiond: lcm " << type << ": " << e.what() << "\n";
+        PublishError(type,
+                     "",
+                     "",
+                     0,
+                     0,
+                     -1,
+                     "(daemon)",
+                     std::string(type) +
+                         " not handled (internal error, nothing stored; send "
+                         "it again later): " +
+                         e.what());
+      } catch (...) {
+        Count(DropCounter(LcmDropReason::kInternal));
+        PublishError(type,
+                     "",
+                     "",
+                     0,
+                     0,
+                     -1,
+                     "(daemon)",
+                     std::string(type) + " not handled (internal error)");
+      }
+    } catch (...) {
+      // Even the error report failed (e.g. out of memory): nothing more to do.
+    }
+  }
+  void OnQueryBytes(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    Guarded("material_query_v1",
+            rbuf,
+            [this](const std::uint8_t* data, std::size_t size) {
+              HandleQueryBytes(data, size);
+            });
+  }
+  void OnChunkBytes(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    Guarded("stroke_chunk_v1",
+            rbuf,
+            [this](const std::uint8_t* data, std::size_t size) {
+              HandleChunkBytes(data, size);
+            });
+  }
+  void OnSignedChunkBytes(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    Guarded("stroke_chunk_v2",
+            rbuf,
+            [this](const std::uint8_t* data, std::size_t size) {
+              HandleSignedChunkBytes(data, size);
+            });
+  }
+
+  static LcmDropReason DropReasonOf(LcmDecodeFailure f) {
+    switch (f) {
+      case LcmDecodeFailure::kTruncated:
+        return LcmDropReason::kTruncated;
+      case LcmDecodeFailure::kWrongHash:
+        return LcmDropReason::kWrongHash;
+      case LcmDecodeFailure::kOversized:
+        return LcmDropReason::kOversized;
+      default:
+        return LcmDropReason::kMalformed;
+    }
+  }
+
+  // A message that does not decode: counted by reason and answered with an
+  // error_v1 naming the field, with the sender's ids as far as they were
+  // decoded before the failure.
+  void DropUndecodable(const char* type,
+                       const LcmDecodeResult& r,
+                       std::size_t size,
+                       const std::string& request_id,
+                       const std::string& robot,
+                       std::int64_t job_id,
+                       int stroke,
+                       int seq) {
+    Count(DropCounter(DropReasonOf(r.failure)));
+    PublishError(type,
+                 request_id,
+                 robot,
+                 job_id,
+                 stroke,
+                 seq,
+                 r.field,
+                 std::string(type) + " dropped (" +
+                     LcmDecodeFailureName(r.failure) + ", " +
+                     std::to_string(size) + " bytes): " + r.detail);
+  }
+
+  void HandleQueryBytes(const std::uint8_t* data, std::size_t size) {
     material_query_v1 q;
-    if (q.decode(rbuf->data, 0, rbuf->data_size) < 0) {
-      PublishError("material_query_v1",
-                   "",
-                   "",
-                   0,
-                   0,
-                   -1,
-                   "(encoding)",
-                   "material_query_v1: cannot decode " +
-                       std::to_string(rbuf->data_size) +
-                       " bytes (wrong type or truncated)");
+    if (const LcmDecodeResult r = DecodeLcm(data, size, &q, decode_limits_);
+        !r.ok()) {
+      DropUndecodable(
+          "material_query_v1", r, size, q.request_id, q.robot, 0, 0, -1);
+      // The robot waits for a reply to its request: answer it when known.
+      if (!q.request_id.empty()) {
+        material_reply_v1 reply;
+        reply.utime = NowUtime();
+        reply.request_id = q.request_id.substr(0, kMaxTextField);
+        reply.robot = q.robot.substr(0, kMaxTextField);
+        reply.status = material_reply_v1::STATUS_ERROR;
+        reply.reason = "material_query_v1 dropped (" +
+                       std::string(LcmDecodeFailureName(r.failure)) +
+                       "): " + r.detail;
+        reply.job_id = 0;
+        reply.recognition_score = 0;
+        reply.model.version = 0;
+        reply.model.n_terms = reply.model.n_quantiles = 0;
+        reply.model.has_lugre = false;
+        publisher_->Publish(kLcmReplyChannel, reply);
+      }
       return;
     }
+    OnQuery(std::move(q));
+  }
+
+  void OnQuery(material_query_v1 q) {
     material_reply_v1 reply;
     reply.utime = NowUtime();
     reply.request_id = q.request_id.substr(0, kMaxTextField);
@@ -354,6 +474,14 @@ class LcmEndpointImpl {
                                    ident.at("stroke"),
                                    /*stroke=*/0,
                                    std::nullopt);
+    } catch (const std::exception& e) {
+      // The store or library failed (e.g. PostgreSQL away): the robot gets
+      // an error reply, the endpoint keeps serving.
+      Count(DropCounter(LcmDropReason::kInternal));
+      return reject("(daemon)",
+                    std::string("the library is unavailable (nothing "
+                                "stored; ask again later): ") +
+                        e.what());
     }
   }
 
@@ -481,21 +609,18 @@ class LcmEndpointImpl {
   }
 
   // Unsigned chunks: only when the daemon allows them.
-  void OnChunk(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+  void HandleChunkBytes(const std::uint8_t* data, std::size_t size) {
     stroke_chunk_v1 m;
-    if (m.decode(rbuf->data, 0, rbuf->data_size) < 0) {
-      PublishError("stroke_chunk_v1",
-                   "",
-                   "",
-                   0,
-                   0,
-                   -1,
-                   "(encoding)",
-                   "stroke_chunk_v1: cannot decode " +
-                       std::to_string(rbuf->data_size) +
-                       " bytes (wrong type or truncated)");
-      return;
-    }
+    if (const LcmDecodeResult r = DecodeLcm(data, size, &m, decode_limits_);
+        !r.ok())
+      return DropUndecodable("stroke_chunk_v1",
+                             r,
+                             size,
+                             "",
+                             m.robot,
+                             m.job_id,
+                             m.stroke,
+                             r.field == "seq" ? -1 : m.seq);
     if (!options_.security.allow_unsigned)
       return Drop("stroke_chunk_v1",
                   LcmDropReason::kUnsigned,
@@ -512,23 +637,19 @@ class LcmEndpointImpl {
   }
 
   // Signed chunks: robot key, MAC, timestamp and nonce, then as unsigned.
-  void OnSignedChunk(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+  void HandleSignedChunkBytes(const std::uint8_t* data, std::size_t size) {
     stroke_chunk_v2 s;
-    if (s.decode(rbuf->data, 0, rbuf->data_size) < 0) {
-      // Cannot even be read: counted as forged (nothing verifies).
-      Count(DropCounter(LcmDropReason::kForged));
-      PublishError("stroke_chunk_v2",
-                   "",
-                   "",
-                   0,
-                   0,
-                   -1,
-                   "(encoding)",
-                   "stroke_chunk_v2: cannot decode " +
-                       std::to_string(rbuf->data_size) +
-                       " bytes (wrong type or truncated)");
-      return;
-    }
+    if (const LcmDecodeResult r = DecodeLcm(data, size, &s, decode_limits_);
+        !r.ok())
+      // Not verified: the ids it names may be anyone's.
+      return DropUndecodable("stroke_chunk_v2",
+                             r,
+                             size,
+                             "",
+                             s.robot,
+                             s.job_id,
+                             s.stroke,
+                             r.field == "seq" ? -1 : s.seq);
     const LcmAuthVerdict v = auth_.Check(
         s.robot,
         s.utime,
@@ -974,6 +1095,7 @@ class LcmEndpointImpl {
   std::shared_ptr<LcmPublisher> publisher_;
   StrokeReassembler reassembler_;
   LcmAuthenticator auth_;
+  LcmDecodeLimits decode_limits_;
   std::map<std::int64_t, JobProgress> jobs_;
   // Jobs this endpoint claimed, with the time of the last claim renewal.
   std::map<std::int64_t, double> claimed_;

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "frictiond/estimators/stroke_csv.h"
+#include "frictiond/proto/actuator_json.h"
 
 namespace frictiond {
 
@@ -675,6 +676,55 @@ int FrictionLibrary::LoadBundledData(const std::string& dir) {
                  {"tags", d.value("tags", std::vector<std::string>{})}};
     PutMaterial(id, body.dump());
     ++loaded;
+  }
+  // Actuator log sets (issue 20, docs/actuator.md): the bundled identified
+  // model of a robot joint becomes the "actuator" family of (robot, joint),
+  // with the logs it was fitted on checked (parsed and replayed) here.
+  if (m.contains("actuator_datasets")) {
+    for (const json& d : m.at("actuator_datasets")) {
+      const std::string robot = d.at("robot").get<std::string>();
+      const std::string joint = d.value("joint", "default");
+      const std::filesystem::path model_path =
+          root / d.at("model").get<std::string>();
+      std::ifstream mf(model_path);
+      if (!mf)
+        throw std::runtime_error(manifest.string() + ": cannot read " +
+                                 model_path.string());
+      json family;
+      ActuatorModel model;
+      try {
+        family = json::parse(mf);
+        model = ActuatorModelFromJson(family.at("model"));
+      } catch (const std::exception& e) {
+        throw std::runtime_error(model_path.string() + ": " + e.what());
+      }
+      json logs = json::array();
+      for (const json& l : d.at("logs")) {
+        const std::filesystem::path lp = root / l.get<std::string>();
+        std::ifstream lf(lp, std::ios::binary);
+        std::stringstream ls;
+        ls << lf.rdbuf();
+        try {
+          const ActuatorLog log =
+              ParseActuatorLog(ls.str(), lp.stem().string());
+          logs.push_back({{"name", log.name},
+                          {"kp", log.kp},
+                          {"trajectory", log.trajectory},
+                          {"samples", log.size()},
+                          {"mae_rad", SimulateActuatorLog(model, log)}});
+        } catch (const std::invalid_argument& e) {
+          throw std::runtime_error(lp.string() + ": " + e.what());
+        }
+      }
+      family["logs"] = logs;
+      family["source"] = d.value("name", robot);
+      AddFamilyVersion(robot, joint, "actuator", family, "bundled");
+      json body = {{"name", d.value("name", robot)},
+                   {"description", d.value("description", "")},
+                   {"tags", d.value("tags", std::vector<std::string>{})}};
+      PutMaterial(robot, body.dump());
+      ++loaded;
+    }
   }
   return loaded;
 }

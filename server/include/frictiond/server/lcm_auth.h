@@ -40,6 +40,14 @@ enum class LcmDropReason {
   kStale,         ///< timestamp outside the window
   kReplayed,      ///< nonce already seen (or older than the cache remembers)
   kUnsigned,      ///< unsigned write while allow_unsigned is off
+  // Messages that do not decode (lcm_codec.h, LcmDecodeFailure):
+  kMalformed,  ///< an invalid value (negative count, bad string, ...)
+  kTruncated,  ///< a field runs past the end of the message
+  kWrongHash,  ///< another type's fingerprint on this channel
+  kOversized,  ///< the message, a string or an array beyond the limits
+  /// The handler failed (e.g. the store is unavailable): answered with an
+  /// error, nothing stored, the endpoint keeps serving.
+  kInternal,
 };
 
 /// "unknown_robot", "forged", ... (the /metrics label).

@@ -30,6 +30,9 @@ void RegisterDiagnosisRoutes(HttpServer& http,
 /// Joint friction (paper 002): /joint-data, /joint-friction, /joint-wear,
 /// /v1/robots/{id}, /repeatability, /repeatability-grid (docs/joint.md).
 void RegisterJointRoutes(HttpServer& http, FrictionLibrary& library);
+/// Measured actuator logs (issue 20): /actuator-logs, /actuator-model,
+/// /actuator-simulate, /actuator-mjcf (docs/actuator.md).
+void RegisterActuatorRoutes(HttpServer& http, FrictionLibrary& library);
 
 /// Answer of the recognition hook: ranked candidates (material, score),
 /// best first, or unknown (below the confidence threshold, or nothing

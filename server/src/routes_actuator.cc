@@ -1,0 +1,247 @@
+// Measured actuator logs (issue 20 item 6, docs/actuator.md): the
+// "actuator" model family of (robot, joint id) pairs, stored as a model
+// version of the pair beside the other families (the joint id takes the
+// fingertip's place, as the "joint" family does), so it is versioned like
+// material models without a new table.
+//
+//   POST /v1/materials/{id}/actuator-logs?joint=&law=   (application/json:
+//        one log object, or {"logs": [log, ...]}) -> fit and store
+//   GET  /v1/materials/{id}/actuator-model?joint=&version=
+//   POST /v1/materials/{id}/actuator-simulate?joint=&version=  (one log)
+//   GET  /v1/materials/{id}/actuator-mjcf?joint=&version=
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "frictiond/proto/actuator_json.h"
+#include "frictiond/proto/actuator_report.h"
+#include "frictiond/server/routes.h"
+
+namespace frictiond {
+
+using nlohmann::json;
+
+namespace {
+
+constexpr const char* kActuatorFamilyKey = "actuator";
+constexpr std::size_t kMaxLogsPerUpload = 32;
+
+void CheckAllowed(const HttpRequest& req,
+                  const std::vector<std::string>& allowed) {
+  for (const auto& kv : req.query) {
+    if (std::find(allowed.begin(), allowed.end(), kv.first) == allowed.end()) {
+      std::string list;
+      for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+      throw RequestError(400,
+                         kv.first.substr(0, 64),
+                         "query parameter " + kv.first.substr(0, 64) +
+                             " is not known (allowed: " + list + ")");
+    }
+  }
+}
+
+std::string JointParam(const HttpRequest& req) {
+  const std::string j = req.QueryOr("joint", "default");
+  CheckId(j, "joint");
+  return j;
+}
+
+void RequireJson(const HttpRequest& req) {
+  const std::string ct = req.Header("Content-Type");
+  if (ct.rfind("application/json", 0) != 0)
+    throw RequestError(
+        415,
+        "Content-Type",
+        "Content-Type '" + ct.substr(0, 64) + "' (must be application/json)");
+}
+
+// The field a parser message starts with ("entries[3].position: missing"
+// -> "entries[3].position", "mass = -1 (...)" -> "mass").
+std::string FieldOf(const std::string& message) {
+  const auto end = message.find_first_of(" :");
+  return message.substr(0, end);
+}
+
+// Parses the body: one log, or {"logs": [...]}. Nothing is stored on error.
+std::vector<ActuatorLog> ParseLogs(const std::string& body) {
+  std::vector<ActuatorLog> logs;
+  json j;
+  try {
+    j = json::parse(body, nullptr, true, false);
+  } catch (const json::exception& e) {
+    throw RequestError(400, "body", std::string("invalid JSON: ") + e.what());
+  }
+  if (!j.is_object())
+    throw RequestError(400, "body", "body must be a JSON object");
+  auto parse_one = [&](const json& x, const std::string& prefix) {
+    try {
+      logs.push_back(ParseActuatorLog(
+          x.dump(),
+          x.value("trajectory", "") +
+              (x.contains("kp") && x["kp"].is_number()
+                   ? "_kp" + std::to_string(
+                                 static_cast<long>(x["kp"].get<double>()))
+                   : "")));
+    } catch (const std::invalid_argument& e) {
+      const std::string f = FieldOf(e.what());
+      throw RequestError(400, prefix + f, prefix + e.what());
+    }
+  };
+  if (j.contains("logs")) {
+    const json& a = j["logs"];
+    if (!a.is_array() || a.empty())
+      throw RequestError(400, "logs", "logs must be a non-empty array");
+    if (a.size() > kMaxLogsPerUpload)
+      throw RequestError(413,
+                         "logs",
+                         "logs: " + std::to_string(a.size()) + " (limit " +
+                             std::to_string(kMaxLogsPerUpload) + ")");
+    for (std::size_t i = 0; i < a.size(); ++i)
+      parse_one(a[i], "logs[" + std::to_string(i) + "].");
+  } else {
+    parse_one(j, "");
+  }
+  return logs;
+}
+
+struct LoadedActuator {
+  std::shared_ptr<const CachedModel> model;
+  json family;
+  ActuatorModel actuator;
+};
+
+LoadedActuator LoadActuator(FrictionLibrary& lib, const HttpRequest& req) {
+  const std::string& id = req.params.at(0);
+  CheckId(id, "id");
+  const std::string joint = JointParam(req);
+  LoadedActuator out;
+  if (auto v = req.Query("version")) {
+    const double x = ParseNumberParam("version", *v);
+    if (!(x >= 1 && x == std::floor(x) && x < 1e9))
+      throw RequestError(
+          400,
+          "version",
+          "version = '" + v->substr(0, 32) + "' (must be a positive integer)");
+    out.model = lib.FindModelVersion(id, joint, static_cast<int>(x));
+  } else {
+    out.model = lib.FindModel(id, joint);
+  }
+  const json hint = {{"upload",
+                      "POST /v1/materials/" + id + "/actuator-logs?joint=" +
+                          joint + " (application/json logs)"}};
+  if (!out.model)
+    throw RequestError(
+        404,
+        "id",
+        "no actuator model for '" + id + "', joint '" + joint + "'",
+        hint);
+  auto it = out.model->set.other.find(kActuatorFamilyKey);
+  if (it == out.model->set.other.end() || it->is_null())
+    throw RequestError(
+        422,
+        kActuatorFamilyKey,
+        "model version " + std::to_string(out.model->set.version) + " of '" +
+            id + "' (joint '" + joint + "') has no actuator family",
+        hint);
+  out.family = *it;
+  try {
+    out.actuator = ActuatorModelFromJson(out.family.at("model"));
+  } catch (const std::exception& e) {
+    throw std::runtime_error(
+        std::string("stored actuator model is malformed: ") + e.what());
+  }
+  return out;
+}
+
+HttpResponse HandleUpload(FrictionLibrary& lib, const HttpRequest& req) {
+  const std::string& id = req.params.at(0);
+  CheckId(id, "id");
+  CheckAllowed(req, {"joint", "law"});
+  const std::string joint = JointParam(req);
+  RequireJson(req);
+  const std::string law_name = req.QueryOr("law", "auto");
+  ActuatorFrictionLaw law;
+  try {
+    law = ParseActuatorFrictionLaw(
+        law_name == "auto" ? ActuatorFrictionLawName(kAutoActuatorLaw)
+                           : law_name);
+  } catch (const std::invalid_argument& e) {
+    throw RequestError(400, "law", e.what());
+  }
+  const std::vector<ActuatorLog> logs = ParseLogs(req.body);
+  const ActuatorFitResult fit = FitActuatorLaw(logs, law);
+  if (!fit.converged)
+    throw RequestError(422, "logs", "identification failed: " + fit.why);
+  json family = ActuatorFitToJson(fit);
+  json per_log = json::array();
+  std::size_t samples = 0;
+  for (const ActuatorLog& l : logs) {
+    samples += l.size();
+    per_log.push_back({{"name", l.name},
+                       {"kp", l.kp},
+                       {"trajectory", l.trajectory},
+                       {"samples", l.size()},
+                       {"mae_rad", SimulateActuatorLog(fit.model, l)}});
+  }
+  family["logs"] = per_log;
+  family["samples"] = samples;
+  family["law_requested"] = law_name;
+  auto model = lib.AddFamilyVersion(
+      id, joint, kActuatorFamilyKey, family, "actuator-logs");
+  return HttpResponse::Json(201,
+                            {{"material", id},
+                             {"joint", joint},
+                             {"version", model ? model->set.version : 0},
+                             {"actuator", family}});
+}
+
+}  // namespace
+
+void RegisterActuatorRoutes(HttpServer& http, FrictionLibrary& library) {
+  http.Route("POST",
+             "/v1/materials/{id}/actuator-logs",
+             [&library](const HttpRequest& req) {
+               return HandleUpload(library, req);
+             });
+  http.Route("GET",
+             "/v1/materials/{id}/actuator-model",
+             [&library](const HttpRequest& req) {
+               CheckAllowed(req, {"joint", "version"});
+               const LoadedActuator a = LoadActuator(library, req);
+               return HttpResponse::Json(200,
+                                         {{"material", req.params.at(0)},
+                                          {"joint", JointParam(req)},
+                                          {"version", a.model->set.version},
+                                          {"actuator", a.family}});
+             });
+  http.Route("POST",
+             "/v1/materials/{id}/actuator-simulate",
+             [&library](const HttpRequest& req) {
+               CheckAllowed(req, {"joint", "version"});
+               RequireJson(req);
+               const LoadedActuator a = LoadActuator(library, req);
+               const std::vector<ActuatorLog> logs = ParseLogs(req.body);
+               if (logs.size() != 1)
+                 throw RequestError(400, "logs", "simulate takes one log");
+               return HttpResponse::Json(
+                   200,
+                   {{"mae_rad", SimulateActuatorLog(a.actuator, logs[0])},
+                    {"samples", logs[0].size()},
+                    {"law", ActuatorFrictionLawName(a.actuator.law)},
+                    {"version", a.model->set.version}});
+             });
+  http.Route("GET",
+             "/v1/materials/{id}/actuator-mjcf",
+             [&library](const HttpRequest& req) {
+               CheckAllowed(req, {"joint", "version"});
+               const LoadedActuator a = LoadActuator(library, req);
+               HttpResponse r;
+               r.status = 200;
+               r.content_type = "application/xml";
+               r.body = ExportActuatorMjcf(a.actuator, JointParam(req));
+               return r;
+             });
+}
+
+}  // namespace frictiond
