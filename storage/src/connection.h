@@ -109,7 +109,7 @@ class Params {
 class Rows {
  public:
   Rows() = default;
-  explicit Rows(int columns) : columns_(columns) {}
+  explicit Rows(int columns) : columns_(columns) { cells_.reserve(columns); }
   Rows(Rows&&) noexcept = default;
   Rows& operator=(Rows&&) noexcept = default;
   Rows(const Rows&) = delete;

@@ -32,6 +32,11 @@ const Dialect kSqliteDialect{
     /*token_order=*/"created_at, rowid",
 };
 
+/// RETURNING (3.35) and ON CONFLICT without a target (3.35).
+constexpr int kMinSqliteVersion = 3035000;
+static_assert(SQLITE_VERSION_NUMBER >= kMinSqliteVersion,
+              "the store needs SQLite >= 3.35 (RETURNING)");
+
 /// `$N` parameters as SQLite's `?N` (same index), outside string literals
 /// and quoted identifiers.
 std::string ToSqliteParameters(std::string_view sql) {
@@ -136,6 +141,11 @@ class Statement {
 class SqliteConnection final : public Connection {
  public:
   explicit SqliteConnection(const std::string& path) {
+    if (sqlite3_libversion_number() < kMinSqliteVersion) {
+      throw std::runtime_error(std::string("sqlite: library ") +
+                               sqlite3_libversion() +
+                               " is older than 3.35 (needed for RETURNING)");
+    }
     if (sqlite3_open_v2(
             path.c_str(),
             &db_,
