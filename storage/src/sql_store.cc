@@ -7,9 +7,11 @@
 // Adding a Store method: declare it in store.h, implement it here once
 // (SQL that runs on every dialect; a dialect difference becomes a Dialect
 // field), and add a TEST_P case to storage/test/store_test.cc.
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <ctime>
+#include <limits>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -463,6 +465,25 @@ class SqlStore final : public Store {
     if (open_only) sql += std::string(" WHERE state IN ") + kOpenStates;
     sql += " ORDER BY id DESC";
     return Read([&](Connection& c) { return All(c.Execute(sql), ReadJob); });
+  }
+
+  std::vector<IdentificationJob> ListJobsPage(bool open_only,
+                                              std::int64_t after,
+                                              int limit) override {
+    std::string sql =
+        "SELECT " FRICTIOND_JOB_COLUMNS " FROM jobs WHERE id < $1";
+    if (open_only) sql += std::string(" AND state IN ") + kOpenStates;
+    sql += " ORDER BY id DESC LIMIT $2";
+    return Read([&](Connection& c) {
+      return All(
+          c.Execute(
+              sql,
+              Params()
+                  .Int(after > 0 ? after
+                                 : std::numeric_limits<std::int64_t>::max())
+                  .Int(std::max(limit, 1))),
+          ReadJob);
+    });
   }
 
   // --- strokes of open identification jobs -----------------------------------
