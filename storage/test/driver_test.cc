@@ -23,6 +23,7 @@ using internal::Driver;
 using internal::Params;
 using internal::Rows;
 
+#ifdef FRICTIOND_HAVE_POSTGRES
 testing::PgServer& SharedPg() {
   static std::mutex mu;
   static std::unique_ptr<testing::PgServer> pg;
@@ -34,6 +35,7 @@ testing::PgServer& SharedPg() {
   }
   return *pg;
 }
+#endif
 
 class DriverTest : public ::testing::TestWithParam<std::string> {
  protected:

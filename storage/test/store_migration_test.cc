@@ -277,17 +277,6 @@ std::set<std::pair<std::string, std::string>> SqliteColumns(Driver& driver) {
   return out;
 }
 
-std::set<std::pair<std::string, std::string>> PostgresColumns(Driver& driver) {
-  std::set<std::pair<std::string, std::string>> out;
-  driver.Read([&](Connection& c) {
-    Rows r = c.Execute(
-        "SELECT table_name::text, column_name::text FROM "
-        "information_schema.columns WHERE table_schema='public'");
-    for (int i = 0; i < r.size(); ++i) out.emplace(r.Take(i, 0), r.Take(i, 1));
-  });
-  return out;
-}
-
 class SqliteFileTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -380,6 +369,17 @@ std::string FreshPgDatabase() {
 }
 
 #ifdef FRICTIOND_HAVE_POSTGRES
+std::set<std::pair<std::string, std::string>> PostgresColumns(Driver& driver) {
+  std::set<std::pair<std::string, std::string>> out;
+  driver.Read([&](Connection& c) {
+    Rows r = c.Execute(
+        "SELECT table_name::text, column_name::text FROM "
+        "information_schema.columns WHERE table_schema='public'");
+    for (int i = 0; i < r.size(); ++i) out.emplace(r.Take(i, 0), r.Take(i, 1));
+  });
+  return out;
+}
+
 class OldPostgresDatabase : public ::testing::TestWithParam<int> {};
 
 TEST_P(OldPostgresDatabase, OpensMigratesAndTakesWrites) {
