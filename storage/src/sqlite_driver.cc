@@ -3,7 +3,9 @@
 // and power loss), foreign keys on, prepared statements cached by their
 // text, every value bound. A write transaction is BEGIN IMMEDIATE: it holds
 // the database's write lock from its first statement, which is the row
-// locking the store logic asks for (Dialect: no lock clauses needed).
+// locking the store logic asks for (Dialect: no lock clauses needed). An
+// unusable database file (busy, locked, read-only, full, I/O) throws
+// StoreUnavailable, any other failure std::runtime_error.
 #include <map>
 #include <mutex>
 #include <stdexcept>
@@ -36,6 +38,22 @@ const Dialect kSqliteDialect{
 constexpr int kMinSqliteVersion = 3035000;
 static_assert(SQLITE_VERSION_NUMBER >= kMinSqliteVersion,
               "the store needs SQLite >= 3.35 (RETURNING)");
+
+/// A locked, read-only, full or failing database file is an outage of the
+/// store (StoreUnavailable: HTTP 503, nothing stored), not a bug.
+[[noreturn]] void ThrowSqliteError(int rc, const std::string& why) {
+  switch (rc & 0xff) {
+    case SQLITE_BUSY:
+    case SQLITE_LOCKED:
+    case SQLITE_READONLY:
+    case SQLITE_IOERR:
+    case SQLITE_FULL:
+    case SQLITE_CANTOPEN:
+      throw StoreUnavailable("sqlite: " + why);
+    default:
+      throw std::runtime_error("sqlite: " + why);
+  }
+}
 
 /// `$N` parameters as SQLite's `?N` (same index), outside string literals
 /// and quoted identifiers.
@@ -114,8 +132,9 @@ class Statement {
     for (;;) {
       const int rc = sqlite3_step(stmt_);
       if (rc == SQLITE_DONE) break;
-      if (rc != SQLITE_ROW)
-        throw std::runtime_error(std::string("sqlite: ") + sqlite3_errmsg(db_));
+      // (Cleanup resets the statement: one left failed "in progress" would
+      // make every later COMMIT on this connection fail.)
+      if (rc != SQLITE_ROW) ThrowSqliteError(rc, sqlite3_errmsg(db_));
       for (int c = 0; c < columns; ++c) {
         if (sqlite3_column_type(stmt_, c) == SQLITE_INTEGER) {
           rows.AddInt(sqlite3_column_int64(stmt_, c));
@@ -183,10 +202,11 @@ class SqliteConnection final : public Connection {
 
   void ExecuteScript(const std::string& sql) override {
     char* err = nullptr;
-    if (sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &err) != SQLITE_OK) {
+    const int rc = sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &err);
+    if (rc != SQLITE_OK) {
       const std::string why = err ? err : sqlite3_errmsg(db_);
       sqlite3_free(err);
-      throw std::runtime_error("sqlite: " + why);
+      ThrowSqliteError(rc, why);
     }
   }
 

@@ -3,6 +3,7 @@
 // typed cells, bytes with NUL, affected rows of writes only, rollback when
 // a write throws. The store logic (sql_store.cc) relies on each of these.
 #include <atomic>
+#include <cstdio>
 #include <memory>
 #include <mutex>
 #include <stdexcept>
@@ -11,6 +12,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include "frictiond/storage/store.h"
 #include "frictiond/testing/pg_server.h"
 
 #include "connection.h"
@@ -125,6 +127,32 @@ TEST_P(DriverTest, ThrowingWriteIsRolledBack) {
   driver_->Read([](Connection& c) {
     EXPECT_EQ(c.Execute("SELECT COUNT(*) FROM t").Int(0, 0), 0);
   });
+}
+
+// A database file another connection keeps locked (beyond the 5 s busy
+// timeout) is an outage (StoreUnavailable: HTTP 503), not a bug, and the
+// connection works again once the lock is gone.
+TEST(SqliteDriver, LockedFileIsUnavailableThenRecovers) {
+  const std::string path = ::testing::TempDir() + "frictiond_locked_" +
+                           std::to_string(::getpid()) + ".db";
+  std::remove(path.c_str());
+  auto holder = internal::OpenSqliteDriver(path);
+  auto other = internal::OpenSqliteDriver(path);
+  holder->Write([](Connection& c) { c.ExecuteScript("CREATE TABLE t(x)"); });
+  const auto write = [](Connection& c) {
+    c.Execute("INSERT INTO t VALUES(1)");
+  };
+  holder->Write([&](Connection&) {
+    EXPECT_THROW(other->Write(write), StoreUnavailable);
+  });
+  other->Write(write);
+  other->Read([](Connection& c) {
+    EXPECT_EQ(c.Execute("SELECT COUNT(*) FROM t").Int(0, 0), 1);
+  });
+  holder.reset();
+  other.reset();
+  for (const char* suffix : {"", "-wal", "-shm"})
+    std::remove((path + suffix).c_str());
 }
 
 INSTANTIATE_TEST_SUITE_P(Drivers,
