@@ -377,6 +377,37 @@ TEST_P(StoreTest, JobStrokesAreKeptUntilDropped) {
   EXPECT_TRUE(store_->ListJobStrokes(job.id).empty());
 }
 
+// Pages of ListJobs: newest first, below `after`, at most `limit`, open
+// ones only when asked; the pages together are ListJobs.
+TEST_P(StoreTest, JobsArePagedNewestFirst) {
+  std::vector<std::int64_t> ids;
+  for (int i = 0; i < 5; ++i) {
+    IdentificationJob j;
+    j.material = "m" + std::to_string(i);
+    j.plan_json = "{}";
+    ids.push_back(store_->RequestIdentification(j).id);
+  }
+  store_->UpdateJob(ids[3], "failed", "x");
+  const auto first = store_->ListJobsPage(false, 0, 2);
+  ASSERT_EQ(first.size(), 2u);
+  EXPECT_EQ(first[0].id, ids[4]);
+  EXPECT_EQ(first[1].id, ids[3]);
+  const auto second = store_->ListJobsPage(false, first[1].id, 2);
+  ASSERT_EQ(second.size(), 2u);
+  EXPECT_EQ(second[0].id, ids[2]);
+  EXPECT_EQ(second[1].id, ids[1]);
+  const auto last = store_->ListJobsPage(false, second[1].id, 2);
+  ASSERT_EQ(last.size(), 1u);
+  EXPECT_EQ(last[0].id, ids[0]);
+  EXPECT_TRUE(store_->ListJobsPage(false, ids[0], 2).empty());
+  const auto open = store_->ListJobsPage(true, 0, 10);
+  ASSERT_EQ(open.size(), 4u);
+  for (const auto& j : open) EXPECT_NE(j.id, ids[3]);
+  EXPECT_EQ(store_->ListJobsPage(true, 0, 0).size(), 1u);  // limit >= 1
+  EXPECT_EQ(store_->ListJobsPage(false, 0, 100).size(),
+            store_->ListJobs(false).size());
+}
+
 TEST(OpenStore, RejectsUnsupportedUrl) {
   // Unbuilt back end (invalid_argument) or unreachable server
   // (StoreUnavailable); either way no store.
