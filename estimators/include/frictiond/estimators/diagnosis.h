@@ -74,13 +74,27 @@ struct DiagnosisOptions {
   /// Slip labelling and fit bounds (used for data without labels and for
   /// the fit mask).
   SlipLabelOptions labelling;
-  /// Cross-validation folds, assigned by stroke (at most the stroke count).
-  int folds = 10;
-  /// Seed of the stroke-to-fold assignment (the only randomness).
+  /// Outer cross-validation folds, assigned by stroke (at most the stroke
+  /// count). Reported errors, gains and p-values come from these folds,
+  /// which the selection never sees.
+  int folds = 5;
+  /// Inner folds: the selection (candidates, forms, windows, bins,
+  /// stopping) runs on each outer training part with this many folds.
+  int inner_folds = 5;
+  /// False (default): folds are contiguous blocks of strokes in recording
+  /// order; true: strokes are shuffled (seeded) before the round robin.
+  bool shuffle_folds = false;
+  /// Seed of the shuffled stroke-to-fold assignment (the only randomness).
   std::uint64_t seed = 0;
-  /// Family-wise error rate per greedy step (Holm over all candidates x
-  /// expansions of the step).
+  /// Error rate: Holm over all candidates x expansions of a greedy step
+  /// inside the selection, and Holm over the reported findings' outer
+  /// p-values (and over all spread candidates).
   double alpha = 0.05;
+  /// Inside the selection (inner folds) a candidate may join the model when
+  /// its raw one-sided p-value is below this (no correction there: every
+  /// finding the selection proposes is then tested on the outer folds,
+  /// Holm over the findings, at `alpha`).
+  double selection_alpha = 0.05;
   /// Smallest held-out MAE gain that counts, in % of the baseline cv_mae.
   double min_gain_pct = 1.0;
   /// At most this many findings (greedy steps).
@@ -97,6 +111,13 @@ struct DiagnosisOptions {
   int bins = 8;
   /// Decay times of the slip-onset transient basis [s].
   std::vector<double> onset_decay_s = {0.05, 0.15, 0.5};
+  /// Interactions (kind "interaction", cause "x*y", the product column):
+  /// the model's inputs with each other and with every numeric candidate,
+  /// and the first this-many causes the selection chose with each other
+  /// (0: no interactions at all).
+  int interaction_candidates = 3;
+  /// Test whether the scale of eps depends on an input or column.
+  bool spread = true;
   /// Replay Coulomb / linear / extended models (slip events, break-away).
   bool replay = true;
   /// Window after slip onset in which the break-away ratio is measured [s].
@@ -142,10 +163,39 @@ struct CandidateTest {
   bool significant = false;  ///< p_holm < alpha and gain_pct >= min_gain_pct
 };
 
+/// A candidate the data cannot tell apart from a finding's cause: its
+/// held-out gain lies within the finding's 95 % confidence interval.
+struct Alternative {
+  std::string cause;             ///< column or derived feature name
+  std::string kind;              ///< as Finding::kind
+  std::string expansion;         ///< its best expansion in that step
+  double cv_mae_gain_pct = 0.0;  ///< its held-out gain in that step (inner)
+  double p_value = 1.0;      ///< two-sided paired test over strokes of "same
+                             ///< held-out error as the finding"
+  double correlation = 0.0;  ///< Pearson correlation of the two causes'
+                             ///< columns on the fitted samples
+};
+
+/// Scale model of eps (a `spread` finding): sigma_eps(x) =
+/// exp(log_sigma_intercept + log_sigma_slope * clamp(x, x_min, x_max)).
+struct EpsScaleModel {
+  std::string input;  ///< column or model input the scale depends on
+  double log_sigma_intercept = 0.0;
+  double log_sigma_slope = 0.0;     ///< per unit of input
+  double x_min = 0.0, x_max = 0.0;  ///< range seen in the fit (clamped)
+  double sigma_ref = 0.0;  ///< the constant-scale sigma_eps it replaces
+  /// sigma_eps at input value x (x outside the fitted range is clamped).
+  double Sigma(double x) const;
+  /// Sigma(x) / sigma_ref: multiply a constant-scale sigma_eps by this
+  /// (e.g. the grip force's eps scale at the grasp's input value).
+  double ScaleFactor(double x) const;
+};
+
 /// A significant cause, in the order it joined the model.
 struct Finding {
   std::string cause;               ///< column or derived feature name
-  std::string kind;                ///< "covariate", "form" or "regime"
+  std::string kind;                ///< "covariate", "form", "regime",
+                                   ///< "interaction" or "spread"
   std::string expansion;           ///< which expansion won
   std::vector<std::string> terms;  ///< term names it added
   double p_value = 1.0;            ///< Holm-adjusted p-value in its step
@@ -156,6 +206,14 @@ struct Finding {
       0.0;  ///< held-out Gaussian log-likelihood gain of the step [nats/sample]
   std::string
       effect;  ///< human-readable effect, e.g. "mu falls 0.011 per degC"
+  /// Gain the selection saw for it (inner folds, all strokes) minus its
+  /// outer held-out gain cv_mae_gain_pct: the optimism removed [%].
+  double selection_bias_pct = 0.0;
+  /// Outer folds (of DiagnosisResult::folds) whose inner selection chose
+  /// this cause too.
+  int folds_selected = 0;
+  /// Candidates whose held-out gain is statistically indistinguishable.
+  std::vector<Alternative> alternatives;
 };
 
 /// A model summarised by its held-out performance.
@@ -167,6 +225,8 @@ struct DiagnosedModel {
   double cv_log_likelihood =
       0.0;                 ///< held-out Gaussian log-likelihood [nats/sample]
   double sigma_eps = 0.0;  ///< residual std on all slipping samples
+  /// eps scale depending on an input (extended model with a spread finding).
+  std::optional<EpsScaleModel> eps_scale;
 };
 
 /// Replay errors of one model on one stroke (or overall).
@@ -214,6 +274,9 @@ struct DiagnosisResult {
       0.0;  ///< (baseline - extended cv_mae) / baseline cv_mae, in %
   double log_likelihood_gain =
       0.0;  ///< extended - baseline held-out log-likelihood [nats/sample]
+  /// Gain of the selected model seen by the selection itself (inner folds
+  /// over all strokes, the pre-nested figure) minus gain_pct [%].
+  double selection_bias_pct = 0.0;
   std::vector<Finding> findings;        ///< most important first
   std::vector<CandidateTest> tests;     ///< every test of every step
   std::vector<std::string> candidates;  ///< causes tested
@@ -225,7 +288,8 @@ struct DiagnosisResult {
   int samples = 0;      ///< samples offered
   int fit_samples = 0;  ///< slipping samples within the bounds
   int strokes = 0;      ///< strokes with slipping samples
-  int folds = 0;        ///< folds used
+  int folds = 0;        ///< outer folds used
+  int inner_folds = 0;  ///< inner folds of the selection
   /// Rows (indices into the data) of the fitted samples and the baseline's
   /// held-out residuals mu - mu_hat there, for residual plots.
   std::vector<std::size_t> fit_rows;
