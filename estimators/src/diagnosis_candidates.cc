@@ -422,10 +422,21 @@ std::string DescribeEffect(const Expansion& e,
   const double line50 =
       x95 > x5 ? f5 + (f95 - f5) * (x50 - x5) / (x95 - x5) : f50;
   const double bend = f50 - line50;
+  // Enough digits to tell the quantiles apart (e.g. positions -109.97 and
+  // -109.79 mm).
+  const double mag = std::max(std::fabs(x5), std::fabs(x95));
+  const int digits =
+      x95 > x5 && mag > 0
+          ? std::min(10,
+                     3 + std::max(0,
+                                  static_cast<int>(
+                                      std::ceil(std::log10(mag / (x95 - x5))))))
+          : 3;
   return std::string("mu is non-linear in ") + x + " (" + e.name +
-         "): it changes by " + Num(f95 - f5) + " from " + x + " = " + Num(x5) +
-         " to " + Num(x95) + " " + unit + ", and at the median (" + Num(x50) +
-         ") lies " + Num(std::fabs(bend)) + (bend > 0 ? " above" : " below") +
+         "): it changes by " + Num(f95 - f5) + " from " + x + " = " +
+         Num(x5, digits) + " to " + Num(x95, digits) + " " + unit +
+         ", and at the median (" + Num(x50, digits) + ") lies " +
+         Num(std::fabs(bend)) + (bend > 0 ? " above" : " below") +
          " the straight line between them";
 }
 

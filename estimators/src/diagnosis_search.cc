@@ -785,9 +785,14 @@ DiagnosisResult RunDiagnosis(const StrokeData& data,
             d.push_back((s.stroke_ll_gain[k] - spread[i].stroke_ll_gain[k]) /
                         outer.mean_per_stroke);
         }
+        // As for mean findings: within the winner's 95 % interval.
+        const double half_width =
+            s.t > 0 && std::isfinite(s.t) ? 2.0 * s.ll_gain / s.t : 0.0;
+        if (!(s.ll_gain - spread[i].ll_gain <= half_width) ||
+            !(spread[i].ll_gain > 0))
+          continue;
         const double p_one = OneSidedT(d).second;
         const double p_two = std::min(1.0, 2.0 * std::min(p_one, 1.0 - p_one));
-        if (!(p_two >= options.alpha)) continue;
         Alternative a;
         a.cause = spread[i].cause;
         a.kind = "spread";
