@@ -20,21 +20,30 @@
 /// slip-onset transients exp(-s/tau) for dwell_s), each a list of regression
 /// Terms, so an extended model is an ordinary term list the daemon can store.
 ///
-/// Statistics (samples within a stroke are correlated, strokes differ):
-/// - every error is measured on held-out strokes: K-fold cross-validation
-///   with folds assigned by stroke (no stroke is in both fit and test);
-/// - a candidate's significance is a one-sided paired t-test over strokes of
-///   d_s = (held-out absolute error of the current model - that of the
-///   candidate model) summed over stroke s (normalised by the mean samples
-///   per stroke, so mean d_s is the cv_mae gain); one stroke = one
-///   observation, so within-stroke correlation and per-stroke offsets do not
-///   inflate the evidence;
-/// - Holm's step-down correction over all candidates x expansions of a
-///   greedy step, plus a minimum practical gain (min_gain_pct of the
-///   baseline cv_mae);
-/// - greedy forward selection: the significant expansion with the largest
-///   gain joins the model, and the step repeats on the extended model until
-///   nothing significant is left.
+/// Statistics (samples within a stroke are correlated, strokes differ;
+/// issue 18, docs/diagnosis.md):
+/// - nested cross-validation with folds assigned by stroke (contiguous
+///   blocks in recording order by default): the whole selection runs on
+///   each outer fold's training strokes with its own inner folds, and
+///   every reported error, gain and p-value comes from the outer folds;
+///   the reported model is the selection run on all strokes, and
+///   selection_bias_pct is its inner gain minus the outer gain;
+/// - significance is a one-sided paired t-test over strokes of
+///   d_s = (held-out absolute error of the model without - with the
+///   finding) summed over stroke s (normalised by the mean samples per
+///   stroke, so mean d_s is the cv_mae gain); one stroke = one observation;
+///   Holm over the findings the selection proposed, plus a minimum
+///   practical gain (min_gain_pct of the baseline cv_mae); inside the
+///   selection a candidate needs raw p < selection_alpha;
+/// - greedy forward selection over candidates x expansions (linear,
+///   splines, quadratic/log/hinge forms, periodic, bins/levels, windows,
+///   onset transients, pairwise interactions "x*y"), largest significant
+///   gain first;
+/// - spread: a log-linear scale model of eps in each input/column against a
+///   constant scale, held-out Gaussian log-likelihood per stroke, Holm over
+///   the columns (kind "spread", EpsScaleModel in the extended model);
+/// - alternatives: candidates whose gain lies in the finding's 95 %
+///   confidence interval (the data cannot tell them apart).
 ///
 /// Noise assumptions: strokes are exchangeable and independent of each other
 /// given the covariates (errors within a stroke may be arbitrarily
