@@ -134,7 +134,8 @@ namespace {
 /// Adds product columns "x*y" (x < y) for the interaction candidates: pairs
 /// among the baseline's inputs and the numeric covariates with finite values
 /// on the fit rows. When all pairs would exceed kMaxProductValues values,
-/// only pairs with a baseline input are added.
+/// only pairs with a baseline input are added, and at most as many of
+/// those as fit in that bound.
 void AddProductColumns(StrokeData* data,
                        const std::vector<bool>& mask,
                        const DiagnosisOptions& options) {
@@ -168,6 +169,11 @@ void AddProductColumns(StrokeData* data,
       pairs.push_back({std::min(all[a], all[b]), std::max(all[a], all[b])});
     }
   }
+  // Bounded memory: at most kMaxProductValues values in product columns
+  // (pairs among the inputs come first, then input x covariate pairs).
+  const std::size_t max_pairs = static_cast<std::size_t>(
+      kMaxProductValues / std::max<double>(1.0, data->size()));
+  if (pairs.size() > max_pairs) pairs.resize(max_pairs);
   for (const auto& [x, y] : pairs) {
     const std::string name = x + "*" + y;
     if (data->FindCovariate(name)) continue;
