@@ -637,7 +637,9 @@ DiagnosisResult RunDiagnosis(const StrokeData& data,
   const std::size_t m_tested = sel.chosen.size();
   OuterChain chain;
   std::vector<double> p_holm;
-  for (int pass = 0; pass < 4; ++pass) {
+  // Each pass that does not settle drops at least one finding, so at most
+  // m_tested + 1 passes; the last one evaluates the final list.
+  for (std::size_t pass = 0; pass <= m_tested + 1; ++pass) {
     std::vector<std::string> causes;
     for (int i : kept) causes.push_back(sel.chosen[i].cause);
     chain = EvaluateChain(data, outer, baseline, causes, fold_sel);
@@ -665,11 +667,6 @@ DiagnosisResult RunDiagnosis(const StrokeData& data,
     }
     if (next == kept) break;
     kept = next;
-  }
-  if (p_holm.size() != kept.size()) {  // did not settle: report none
-    kept.clear();
-    p_holm.clear();
-    chain = EvaluateChain(data, outer, baseline, {}, fold_sel);
   }
   const double n_outer = static_cast<double>(outer.y.size());
   const double base_mae = chain.sae[0] / n_outer;
