@@ -2,8 +2,11 @@
 // samples with 10 candidate columns (temp_c, dir_deg, contact_x_mm, two
 // noise columns and the 5 derived features of CONTRACT.md), planted
 // temperature effect (tests/testing planted_effects, 240 strokes, seed 5),
-// default options: leave-strokes-out 10-fold CV of every candidate
-// expansion, Holm, greedy extension, replay of Coulomb/linear/extended.
+// default options (issue 18): nested blocked cross-validation, i.e. the
+// greedy selection (every candidate expansion, interactions, inner 5-fold
+// CV) run once on all strokes and once per outer fold (5, in parallel on
+// up to hardware_concurrency threads), outer tests of the findings, the
+// spread scan, replay of Coulomb/linear/extended.
 // Median wall time of 3 runs (labelling and derived features are prepared
 // once, outside the timing, as `friction diagnose` does per file).
 //

@@ -39,7 +39,7 @@ if [ "${FRICTIOND_SKIP_SANITIZERS:-0}" != 1 ]; then
     -DFRICTIOND_SANITIZE="address;undefined" -DFRICTIOND_WITH_OPENCV=OFF -DFRICTIOND_WITH_LCM=OFF \
     -DFRICTIOND_BUILD_BENCHMARKS=OFF >/dev/null
   ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
-    ctest --test-dir "$root/build-asan" --output-on-failure -j2 --timeout 900 -E 'lcm' -LE 'install|browser'
+    ctest --test-dir "$root/build-asan" --output-on-failure -j2 --timeout 900 -E 'lcm' -LE 'install|browser|slow'
 fi
 if [ "${FRICTIOND_SKIP_FUZZ:-0}" != 1 ]; then
   ./deploy/fuzz.sh

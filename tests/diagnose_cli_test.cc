@@ -91,8 +91,12 @@ void ExpectContractShape(const nlohmann::json& j) {
   for (const auto& f : j["findings"]) {
     EXPECT_TRUE(f["cause"].is_string());
     const std::string kind = f["kind"];
-    EXPECT_TRUE(kind == "covariate" || kind == "form" || kind == "regime")
+    // Issue 18 adds the kinds "interaction" and "spread".
+    EXPECT_TRUE(kind == "covariate" || kind == "form" || kind == "regime" ||
+                kind == "interaction" || kind == "spread")
         << kind;
+    EXPECT_TRUE(f["selection_bias_pct"].is_number());
+    EXPECT_TRUE(f["alternatives"].is_array());
     EXPECT_TRUE(f["p_value"].is_number());
     EXPECT_TRUE(f["cv_mae_gain_pct"].is_number());
     EXPECT_TRUE(f["effect"].is_string());

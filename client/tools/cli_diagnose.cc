@@ -30,7 +30,9 @@ struct DiagnoseArgs {
   std::string report;
   double slip_peak_mm_s = 0.0;
   double slip_floor_mm_s = 0.0;
-  int folds = 10;
+  int folds = 5;
+  int inner_folds = 5;
+  bool shuffle_folds = false;
   std::uint64_t seed = 0;
   double alpha = 0.05;
   double min_gain_pct = 1.0;
@@ -55,7 +57,9 @@ void PrintSummary(const DiagnosisResult& r,
             << (r.why.empty() ? "" : " (" + r.why + ")") << "\n";
   std::cout << "data: " << r.samples << " samples, " << r.fit_samples
             << " slipping, " << r.strokes << " strokes, " << r.folds
-            << " stroke folds\n";
+            << " outer x " << r.inner_folds << " inner stroke folds ("
+            << (o.shuffle_folds ? "shuffled" : "contiguous blocks in time")
+            << ")\n";
   std::cout << "slip thresholds: peak " << Fmt(o.labelling.peak_mm_s)
             << " mm/s, floor " << Fmt(o.labelling.floor_mm_s) << " mm/s"
             << (rule.empty() ? "" : " (" + rule + ")") << "\n";
@@ -97,22 +101,26 @@ void PrintSummary(const DiagnosisResult& r,
     std::cout << "\n";
   }
   if (r.findings.empty()) {
-    std::cout << "findings: none significant (alpha " << Fmt(o.alpha)
-              << " after Holm, min gain " << Fmt(o.min_gain_pct) << " %)\n";
+    std::cout << "findings: none significant on the outer folds (alpha "
+              << Fmt(o.alpha) << " after Holm, min gain " << Fmt(o.min_gain_pct)
+              << " %)\n";
   } else {
     std::cout << "findings:\n";
     for (std::size_t i = 0; i < r.findings.size(); ++i) {
       const Finding& f = r.findings[i];
       std::cout << "  " << i + 1 << ". " << f.cause << " (" << f.kind << ", "
                 << f.expansion << "): gain " << Fmt(f.cv_mae_gain_pct)
-                << " %, p " << Fmt(f.p_value, 2) << "\n     " << f.effect
-                << "\n";
+                << " %, p " << Fmt(f.p_value, 2) << ", selection bias "
+                << Fmt(f.selection_bias_pct) << " %, chosen in "
+                << f.folds_selected << "/" << r.folds << " outer folds\n     "
+                << f.effect << "\n";
     }
   }
   std::cout << "extended " << r.extended.model << ": cv_mae "
             << Fmt(r.extended.cv_mae, 4) << ", gain " << Fmt(r.gain_pct)
             << " %, log-likelihood gain " << Fmt(r.log_likelihood_gain)
-            << " nats/sample\n";
+            << " nats/sample (outer folds; the selection saw "
+            << Fmt(r.gain_pct + r.selection_bias_pct) << " %)\n";
   std::cout << "  terms:";
   for (const auto& t : r.extended.terms) std::cout << " " << t;
   std::cout << "\n";
@@ -296,6 +304,8 @@ void RunDiagnose(const DiagnoseArgs& a, const Globals& g) {
   }
   DiagnosisOptions options;
   options.folds = a.folds;
+  options.inner_folds = a.inner_folds;
+  options.shuffle_folds = a.shuffle_folds;
   options.seed = a.seed;
   options.alpha = a.alpha;
   options.min_gain_pct = a.min_gain_pct;
@@ -409,14 +419,25 @@ void RegisterDiagnoseCommand(CLI::App& app, Globals& g) {
                   "speed above which samples around the peak are slip [mm/s] "
                   "(default: 5, or 0.08 x the 99th "
                   "percentile speed, as above)");
-  cmd->add_option(
-         "--folds", args->folds, "cross-validation folds, assigned by stroke")
+  cmd->add_option("--folds",
+                  args->folds,
+                  "outer cross-validation folds (reported figures), "
+                  "assigned by stroke")
       ->capture_default_str();
-  cmd->add_option("--seed", args->seed, "seed of the stroke-to-fold assignment")
+  cmd->add_option("--inner-folds",
+                  args->inner_folds,
+                  "inner folds of the selection on each outer training part")
+      ->capture_default_str();
+  cmd->add_flag("--shuffle-folds",
+                args->shuffle_folds,
+                "shuffle strokes into folds (default: contiguous blocks of "
+                "strokes in recording order)");
+  cmd->add_option(
+         "--seed", args->seed, "seed of the shuffled stroke-to-fold assignment")
       ->capture_default_str();
   cmd->add_option("--alpha",
                   args->alpha,
-                  "family-wise error rate per greedy step (Holm)")
+                  "error rate of the outer tests (Holm over the findings)")
       ->capture_default_str();
   cmd->add_option("--min-gain-pct",
                   args->min_gain_pct,

@@ -158,7 +158,9 @@ Term Term::Parse(std::string_view name) {
   }
   if (t.input.empty()) throw bad("no input column");
   for (char c : t.input) {
-    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_'))
+    // '*' names a product column x*y (an interaction found by diagnosis;
+    // the caller provides the column, BuildDesign reads it by name).
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '*'))
       throw bad("input '" + t.input + "' is not a column name");
   }
   return t;

@@ -20,6 +20,15 @@ nlohmann::json ModelJson(const DiagnosedModel& m) {
     coefficients[m.terms[k]] = Number(m.beta[k]);
   j["coefficients"] = coefficients;
   j["sigma_eps"] = Number(m.sigma_eps);
+  if (m.eps_scale) {
+    const EpsScaleModel& e = *m.eps_scale;
+    j["eps_scale"] = {{"input", e.input},
+                      {"log_sigma_intercept", Number(e.log_sigma_intercept)},
+                      {"log_sigma_slope", Number(e.log_sigma_slope)},
+                      {"x_min", Number(e.x_min)},
+                      {"x_max", Number(e.x_max)},
+                      {"sigma_ref", Number(e.sigma_ref)}};
+  }
   j["cv_log_likelihood"] = Number(m.cv_log_likelihood);
   return j;
 }
@@ -61,21 +70,33 @@ nlohmann::json DiagnosisToJson(const DiagnosisResult& r,
   j["baseline"] = ModelJson(r.baseline);
   nlohmann::json findings = nlohmann::json::array();
   for (const Finding& f : r.findings) {
-    findings.push_back(
-        {{"cause", f.cause},
-         {"kind", f.kind},
-         {"p_value", Number(f.p_value)},
-         {"cv_mae_gain_pct", Number(f.cv_mae_gain_pct)},
-         {"effect", f.effect},
-         {"expansion", f.expansion},
-         {"terms", f.terms},
-         {"cv_mae", Number(f.cv_mae)},
-         {"log_likelihood_gain", Number(f.log_likelihood_gain)}});
+    nlohmann::json alternatives = nlohmann::json::array();
+    for (const Alternative& a : f.alternatives) {
+      alternatives.push_back({{"cause", a.cause},
+                              {"kind", a.kind},
+                              {"expansion", a.expansion},
+                              {"cv_mae_gain_pct", Number(a.cv_mae_gain_pct)},
+                              {"p_value", Number(a.p_value)},
+                              {"correlation", Number(a.correlation)}});
+    }
+    findings.push_back({{"cause", f.cause},
+                        {"kind", f.kind},
+                        {"p_value", Number(f.p_value)},
+                        {"cv_mae_gain_pct", Number(f.cv_mae_gain_pct)},
+                        {"effect", f.effect},
+                        {"expansion", f.expansion},
+                        {"terms", f.terms},
+                        {"cv_mae", Number(f.cv_mae)},
+                        {"log_likelihood_gain", Number(f.log_likelihood_gain)},
+                        {"selection_bias_pct", Number(f.selection_bias_pct)},
+                        {"folds_selected", f.folds_selected},
+                        {"alternatives", alternatives}});
   }
   j["findings"] = findings;
   nlohmann::json extended = ModelJson(r.extended);
   extended["gain_pct"] = Number(r.gain_pct);
   extended["log_likelihood_gain"] = Number(r.log_likelihood_gain);
+  extended["selection_bias_pct"] = Number(r.selection_bias_pct);
   j["extended"] = extended;
   j["log_likelihood_gain"] = Number(r.log_likelihood_gain);
   j["data"] = {{"samples", r.samples},
@@ -88,19 +109,32 @@ nlohmann::json DiagnosisToJson(const DiagnosisResult& r,
                     {"slip_floor_mm_s", options.labelling.floor_mm_s},
                     {"median_window_s", options.labelling.median_window_s},
                     {"rule", labelling_rule}};
+  j["selection_bias_pct"] = Number(r.selection_bias_pct);
   j["statistics"] = {
       {"cross_validation",
-       "leave-strokes-out K-fold (folds assigned by stroke, seeded shuffle)"},
+       std::string("nested leave-strokes-out K-fold: the selection runs on "
+                   "each outer training part with inner folds; reported "
+                   "errors, gains and p-values come from the outer folds. "
+                   "Folds are ") +
+           (options.shuffle_folds
+                ? "seeded shuffles of the strokes"
+                : "contiguous blocks of strokes in recording order")},
       {"folds", r.folds},
+      {"inner_folds", r.inner_folds},
+      {"shuffle_folds", options.shuffle_folds},
       {"seed", options.seed},
       {"test",
-       "one-sided paired t-test over strokes of held-out absolute-error "
-       "differences"},
+       "one-sided paired t-test over strokes of outer held-out "
+       "absolute-error differences (spread: log-likelihood differences)"},
       {"correction",
-       "Holm over all candidates x expansions of each greedy step"},
+       "Holm over the findings the selection proposed (and over all spread "
+       "candidates); inside the selection raw p < selection_alpha"},
       {"alpha", options.alpha},
+      {"selection_alpha", options.selection_alpha},
       {"min_gain_pct", options.min_gain_pct},
-      {"selection", "greedy forward, largest significant held-out gain first"}};
+      {"selection",
+       "greedy forward on inner folds, largest significant held-out gain "
+       "first; interactions among the model's inputs and chosen causes"}};
   if (json_options.replay) {
     nlohmann::json replay = nlohmann::json::array();
     bool lugre_replayed = false;

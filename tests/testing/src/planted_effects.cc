@@ -194,4 +194,154 @@ StrokeData GeneratePlantedStrokes(const PlantedSpec& spec, std::uint64_t seed) {
   return d;
 }
 
+std::string ToString(WideKind kind) {
+  switch (kind) {
+    case WideKind::kSmoothCurve:
+      return "smooth_curve";
+    case WideKind::kInteraction:
+      return "interaction";
+    case WideKind::kSpread:
+      return "spread";
+    case WideKind::kCategorical:
+      return "categorical";
+    case WideKind::kNullHeavyTail:
+      return "null_heavy_tail";
+    case WideKind::kNullOffsets:
+      return "null_offsets";
+    case WideKind::kNullArNoise:
+      return "null_ar_noise";
+    case WideKind::kNullManyColumns:
+      return "null_many_columns";
+  }
+  return "unknown";
+}
+
+bool IsNull(WideKind kind) {
+  return kind == WideKind::kNullHeavyTail || kind == WideKind::kNullOffsets ||
+         kind == WideKind::kNullArNoise || kind == WideKind::kNullManyColumns;
+}
+
+WideCase GenerateWideCase(WideKind kind, std::uint64_t seed, int strokes) {
+  std::mt19937_64 rng(seed * 7919 + static_cast<std::uint64_t>(kind));
+  std::uniform_real_distribution<double> unif(0.0, 1.0);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  PlantedSpec spec;
+  spec.strokes = strokes;
+  spec.write_labels = true;  // to know the slipping samples; removed below
+  if (kind == WideKind::kNullOffsets) spec.stroke_offset_sd = 0.15;
+  if (kind == WideKind::kNullArNoise) spec.ar_rho = 0.995;
+  if (kind == WideKind::kNullManyColumns) spec.noise_columns = 20;
+  WideCase out;
+  out.data = GeneratePlantedStrokes(spec, seed);
+  StrokeData& d = out.data;
+  const std::size_t n = d.size();
+  // A meaningless column name: 2-4 letters and 1-2 digits.
+  std::string name;
+  const int letters = 2 + static_cast<int>(unif(rng) * 3);
+  for (int k = 0; k < letters; ++k)
+    name += static_cast<char>('a' + static_cast<int>(unif(rng) * 26) % 26);
+  name += std::to_string(static_cast<int>(unif(rng) * 90) + 1);
+  // Per-stroke values of the new column (and a slow drift within strokes).
+  std::vector<double> per_stroke(strokes);
+  for (double& v : per_stroke) v = normal(rng);
+  std::vector<double> z(n);
+  double t0 = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i == 0 || d.stroke[i] != d.stroke[i - 1]) t0 = d.t_s[i];
+    z[i] = per_stroke[d.stroke[i]];
+    if (kind == WideKind::kSmoothCurve) z[i] += 0.3 * (d.t_s[i] - t0);
+  }
+  auto add_mu = [&](std::size_t i, double dmu) {
+    if (d.slip[i] == 1) d.ft_n[i] = std::max(0.0, d.ft_n[i] + dmu * d.fn_n[i]);
+  };
+  switch (kind) {
+    case WideKind::kSmoothCurve: {
+      // Random smooth curve: 3 harmonics, random amplitudes and phases,
+      // scaled to a standard deviation of 0.05 over the column's values.
+      const double lo = -2.5, hi = 2.5;
+      double a[3], ph[3];
+      for (int k = 0; k < 3; ++k)
+        a[k] = normal(rng) / (k + 1), ph[k] = 2 * M_PI * unif(rng);
+      auto f = [&](double x) {
+        const double u = (std::min(std::max(x, lo), hi) - lo) / (hi - lo);
+        double s = 0.0;
+        for (int k = 0; k < 3; ++k)
+          s += a[k] * std::sin(M_PI * (k + 1) * u + ph[k]);
+        return s;
+      };
+      double m = 0.0, ss = 0.0;
+      for (double v : per_stroke) m += f(v);
+      m /= strokes;
+      for (double v : per_stroke) ss += (f(v) - m) * (f(v) - m);
+      const double scale = 0.05 / std::max(1e-9, std::sqrt(ss / strokes));
+      for (std::size_t i = 0; i < n; ++i) add_mu(i, scale * (f(z[i]) - m));
+      out.cause = name;
+      out.kind = "covariate";
+      out.truth = "random smooth curve of " + name;
+      break;
+    }
+    case WideKind::kInteraction: {
+      const double size =
+          (unif(rng) < 0.5 ? -1.0 : 1.0) * (0.03 + 0.02 * unif(rng));
+      for (std::size_t i = 0; i < n; ++i)
+        add_mu(i, size * (d.fn_n[i] - 2.5) * z[i]);
+      out.cause = std::min(name, std::string("fn_n")) + "*" +
+                  std::max(name, std::string("fn_n"));
+      out.kind = "interaction";
+      out.truth = "Fn slope changes by " + std::to_string(size) +
+                  " per unit of " + name;
+      break;
+    }
+    case WideKind::kSpread: {
+      const double growth = 0.6 + 0.4 * unif(rng);
+      for (std::size_t i = 0; i < n; ++i)
+        add_mu(i, 0.03 * std::exp(growth * z[i]) * normal(rng));
+      out.cause = name;
+      out.kind = "spread";
+      out.truth =
+          "eps scale x exp(" + std::to_string(growth) + " " + name + ")";
+      break;
+    }
+    case WideKind::kCategorical: {
+      const int levels = 3 + static_cast<int>(unif(rng) * 3) % 3;
+      std::vector<double> code(levels), shift(levels);
+      for (int l = 0; l < levels; ++l) {
+        code[l] = 10.0 * (l + 1) + static_cast<int>(unif(rng) * 9);
+        shift[l] = 0.06 * normal(rng);
+      }
+      std::vector<int> level(strokes);
+      for (int& l : level) l = static_cast<int>(unif(rng) * levels) % levels;
+      for (std::size_t i = 0; i < n; ++i) {
+        const int l = level[d.stroke[i]];
+        z[i] = code[l];
+        add_mu(i, shift[l]);
+      }
+      out.cause = name;
+      out.kind = "covariate";
+      out.truth = std::to_string(levels) + " levels of " + name;
+      break;
+    }
+    case WideKind::kNullHeavyTail: {
+      std::student_t_distribution<double> t(2.5);
+      for (std::size_t i = 0; i < n; ++i) add_mu(i, 0.02 * t(rng));
+      out.truth = "null, Student-t noise";
+      break;
+    }
+    case WideKind::kNullOffsets:
+      out.truth = "null, large stroke offsets";
+      break;
+    case WideKind::kNullArNoise:
+      out.truth = "null, AR(1) rho 0.995";
+      break;
+    case WideKind::kNullManyColumns:
+      out.truth = "null, 20 irrelevant columns";
+      break;
+  }
+  d.covariate_names.push_back(name);
+  d.covariates.push_back(std::move(z));
+  d.slip.clear();
+  d.stroke.clear();
+  return out;
+}
+
 }  // namespace frictiond::testing

@@ -20,21 +20,30 @@
 /// slip-onset transients exp(-s/tau) for dwell_s), each a list of regression
 /// Terms, so an extended model is an ordinary term list the daemon can store.
 ///
-/// Statistics (samples within a stroke are correlated, strokes differ):
-/// - every error is measured on held-out strokes: K-fold cross-validation
-///   with folds assigned by stroke (no stroke is in both fit and test);
-/// - a candidate's significance is a one-sided paired t-test over strokes of
-///   d_s = (held-out absolute error of the current model - that of the
-///   candidate model) summed over stroke s (normalised by the mean samples
-///   per stroke, so mean d_s is the cv_mae gain); one stroke = one
-///   observation, so within-stroke correlation and per-stroke offsets do not
-///   inflate the evidence;
-/// - Holm's step-down correction over all candidates x expansions of a
-///   greedy step, plus a minimum practical gain (min_gain_pct of the
-///   baseline cv_mae);
-/// - greedy forward selection: the significant expansion with the largest
-///   gain joins the model, and the step repeats on the extended model until
-///   nothing significant is left.
+/// Statistics (samples within a stroke are correlated, strokes differ;
+/// issue 18, docs/diagnosis.md):
+/// - nested cross-validation with folds assigned by stroke (contiguous
+///   blocks in recording order by default): the whole selection runs on
+///   each outer fold's training strokes with its own inner folds, and
+///   every reported error, gain and p-value comes from the outer folds;
+///   the reported model is the selection run on all strokes, and
+///   selection_bias_pct is its inner gain minus the outer gain;
+/// - significance is a one-sided paired t-test over strokes of
+///   d_s = (held-out absolute error of the model without - with the
+///   finding) summed over stroke s (normalised by the mean samples per
+///   stroke, so mean d_s is the cv_mae gain); one stroke = one observation;
+///   Holm over the findings the selection proposed, plus a minimum
+///   practical gain (min_gain_pct of the baseline cv_mae); inside the
+///   selection a candidate needs raw p < selection_alpha;
+/// - greedy forward selection over candidates x expansions (linear,
+///   splines, quadratic/log/hinge forms, periodic, bins/levels, windows,
+///   onset transients, pairwise interactions "x*y"), largest significant
+///   gain first;
+/// - spread: a log-linear scale model of eps in each input/column against a
+///   constant scale, held-out Gaussian log-likelihood per stroke, Holm over
+///   the columns (kind "spread", EpsScaleModel in the extended model);
+/// - alternatives: candidates whose gain lies in the finding's 95 %
+///   confidence interval (the data cannot tell them apart).
 ///
 /// Noise assumptions: strokes are exchangeable and independent of each other
 /// given the covariates (errors within a stroke may be arbitrarily
@@ -74,13 +83,27 @@ struct DiagnosisOptions {
   /// Slip labelling and fit bounds (used for data without labels and for
   /// the fit mask).
   SlipLabelOptions labelling;
-  /// Cross-validation folds, assigned by stroke (at most the stroke count).
-  int folds = 10;
-  /// Seed of the stroke-to-fold assignment (the only randomness).
+  /// Outer cross-validation folds, assigned by stroke (at most the stroke
+  /// count). Reported errors, gains and p-values come from these folds,
+  /// which the selection never sees.
+  int folds = 5;
+  /// Inner folds: the selection (candidates, forms, windows, bins,
+  /// stopping) runs on each outer training part with this many folds.
+  int inner_folds = 5;
+  /// False (default): folds are contiguous blocks of strokes in recording
+  /// order; true: strokes are shuffled (seeded) before the round robin.
+  bool shuffle_folds = false;
+  /// Seed of the shuffled stroke-to-fold assignment (the only randomness).
   std::uint64_t seed = 0;
-  /// Family-wise error rate per greedy step (Holm over all candidates x
-  /// expansions of the step).
+  /// Error rate: Holm over all candidates x expansions of a greedy step
+  /// inside the selection, and Holm over the reported findings' outer
+  /// p-values (and over all spread candidates).
   double alpha = 0.05;
+  /// Inside the selection (inner folds) a candidate may join the model when
+  /// its raw one-sided p-value is below this (no correction there: every
+  /// finding the selection proposes is then tested on the outer folds,
+  /// Holm over the findings, at `alpha`).
+  double selection_alpha = 0.05;
   /// Smallest held-out MAE gain that counts, in % of the baseline cv_mae.
   double min_gain_pct = 1.0;
   /// At most this many findings (greedy steps).
@@ -97,6 +120,13 @@ struct DiagnosisOptions {
   int bins = 8;
   /// Decay times of the slip-onset transient basis [s].
   std::vector<double> onset_decay_s = {0.05, 0.15, 0.5};
+  /// Interactions (kind "interaction", cause "x*y", the product column):
+  /// the model's inputs with each other and with every numeric candidate,
+  /// and the first this-many causes the selection chose with each other
+  /// (0: no interactions at all).
+  int interaction_candidates = 3;
+  /// Test whether the scale of eps depends on an input or column.
+  bool spread = true;
   /// Replay Coulomb / linear / extended models (slip events, break-away).
   bool replay = true;
   /// Window after slip onset in which the break-away ratio is measured [s].
@@ -142,10 +172,39 @@ struct CandidateTest {
   bool significant = false;  ///< p_holm < alpha and gain_pct >= min_gain_pct
 };
 
+/// A candidate the data cannot tell apart from a finding's cause: its
+/// held-out gain lies within the finding's 95 % confidence interval.
+struct Alternative {
+  std::string cause;             ///< column or derived feature name
+  std::string kind;              ///< as Finding::kind
+  std::string expansion;         ///< its best expansion in that step
+  double cv_mae_gain_pct = 0.0;  ///< its held-out gain in that step (inner)
+  double p_value = 1.0;      ///< two-sided paired test over strokes of "same
+                             ///< held-out error as the finding"
+  double correlation = 0.0;  ///< Pearson correlation of the two causes'
+                             ///< columns on the fitted samples
+};
+
+/// Scale model of eps (a `spread` finding): sigma_eps(x) =
+/// exp(log_sigma_intercept + log_sigma_slope * clamp(x, x_min, x_max)).
+struct EpsScaleModel {
+  std::string input;  ///< column or model input the scale depends on
+  double log_sigma_intercept = 0.0;
+  double log_sigma_slope = 0.0;     ///< per unit of input
+  double x_min = 0.0, x_max = 0.0;  ///< range seen in the fit (clamped)
+  double sigma_ref = 0.0;  ///< the constant-scale sigma_eps it replaces
+  /// sigma_eps at input value x (x outside the fitted range is clamped).
+  double Sigma(double x) const;
+  /// Sigma(x) / sigma_ref: multiply a constant-scale sigma_eps by this
+  /// (e.g. the grip force's eps scale at the grasp's input value).
+  double ScaleFactor(double x) const;
+};
+
 /// A significant cause, in the order it joined the model.
 struct Finding {
   std::string cause;               ///< column or derived feature name
-  std::string kind;                ///< "covariate", "form" or "regime"
+  std::string kind;                ///< "covariate", "form", "regime",
+                                   ///< "interaction" or "spread"
   std::string expansion;           ///< which expansion won
   std::vector<std::string> terms;  ///< term names it added
   double p_value = 1.0;            ///< Holm-adjusted p-value in its step
@@ -156,6 +215,14 @@ struct Finding {
       0.0;  ///< held-out Gaussian log-likelihood gain of the step [nats/sample]
   std::string
       effect;  ///< human-readable effect, e.g. "mu falls 0.011 per degC"
+  /// Gain the selection saw for it (inner folds, all strokes) minus its
+  /// outer held-out gain cv_mae_gain_pct: the optimism removed [%].
+  double selection_bias_pct = 0.0;
+  /// Outer folds (of DiagnosisResult::folds) whose inner selection chose
+  /// this cause too.
+  int folds_selected = 0;
+  /// Candidates whose held-out gain is statistically indistinguishable.
+  std::vector<Alternative> alternatives;
 };
 
 /// A model summarised by its held-out performance.
@@ -167,6 +234,8 @@ struct DiagnosedModel {
   double cv_log_likelihood =
       0.0;                 ///< held-out Gaussian log-likelihood [nats/sample]
   double sigma_eps = 0.0;  ///< residual std on all slipping samples
+  /// eps scale depending on an input (extended model with a spread finding).
+  std::optional<EpsScaleModel> eps_scale;
 };
 
 /// Replay errors of one model on one stroke (or overall).
@@ -214,6 +283,9 @@ struct DiagnosisResult {
       0.0;  ///< (baseline - extended cv_mae) / baseline cv_mae, in %
   double log_likelihood_gain =
       0.0;  ///< extended - baseline held-out log-likelihood [nats/sample]
+  /// Gain of the selected model seen by the selection itself (inner folds
+  /// over all strokes, the pre-nested figure) minus gain_pct [%].
+  double selection_bias_pct = 0.0;
   std::vector<Finding> findings;        ///< most important first
   std::vector<CandidateTest> tests;     ///< every test of every step
   std::vector<std::string> candidates;  ///< causes tested
@@ -225,7 +297,8 @@ struct DiagnosisResult {
   int samples = 0;      ///< samples offered
   int fit_samples = 0;  ///< slipping samples within the bounds
   int strokes = 0;      ///< strokes with slipping samples
-  int folds = 0;        ///< folds used
+  int folds = 0;        ///< outer folds used
+  int inner_folds = 0;  ///< inner folds of the selection
   /// Rows (indices into the data) of the fitted samples and the baseline's
   /// held-out residuals mu - mu_hat there, for residual plots.
   std::vector<std::size_t> fit_rows;

@@ -44,7 +44,8 @@ enum class TermKind {
 /// coefficients in JSON), and Parse(Name()) gives the term back.
 struct Term {
   TermKind kind = TermKind::kIntercept;
-  std::string input;  ///< column the term reads ("" for the intercept)
+  std::string input;  ///< column the term reads ("" for the intercept); "x*y"
+                      ///< names a product column the caller provides
   double a = 0.0;     ///< exponent, decay length or window start
   double b = 0.0;     ///< window end
 

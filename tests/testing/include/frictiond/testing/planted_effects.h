@@ -78,4 +78,40 @@ StrokeData GeneratePlantedStrokes(const PlantedSpec& spec, std::uint64_t seed);
 /// Default effect size used when spec.size == 0.
 double DefaultPlantedSize(PlantedEffect effect);
 
+/// Planted cases drawn from families wider than the diagnosis' candidate
+/// list (issue 18), for detection and false-alarm rates over many seeds.
+/// Every case starts from GeneratePlantedStrokes(kNone) and adds one column
+/// with a random, meaningless name (letters and digits, no unit suffix) and
+/// an effect drawn at random within its family:
+enum class WideKind {
+  kSmoothCurve,      ///< mu += random smooth curve (3 random harmonics on the
+                     ///< column's range) of a drifting column
+  kInteraction,      ///< mu += size * (fn_n - 2.5) * z: the Fn slope depends on
+                     ///< a per-stroke column z (no main effect of z)
+  kSpread,           ///< eps gets white noise whose scale grows exp-linearly
+                     ///< with a per-stroke column (mean unchanged)
+  kCategorical,      ///< a per-stroke column with 3-5 integer levels (random
+                     ///< codes), each level shifting mu by a random amount
+  kNullHeavyTail,    ///< nothing planted; white Student-t(2.5) noise on mu
+  kNullOffsets,      ///< nothing planted; per-stroke offsets sd 0.15 (5x)
+  kNullArNoise,      ///< nothing planted; AR(1) noise with rho 0.995
+  kNullManyColumns,  ///< nothing planted; 20 irrelevant columns
+};
+/// Short name ("smooth_curve", ..., "null_many_columns").
+std::string ToString(WideKind kind);
+/// True for the null kinds.
+bool IsNull(WideKind kind);
+
+/// One generated case and what a correct diagnosis names first.
+struct WideCase {
+  StrokeData data;
+  std::string cause;  ///< expected first cause ("" for nulls)
+  std::string kind;   ///< expected finding kind ("covariate", "interaction",
+                      ///< "spread"; "" for nulls)
+  std::string truth;  ///< what was planted, for failure messages
+};
+
+/// Generates a case of `kind` with `strokes` strokes; deterministic per seed.
+WideCase GenerateWideCase(WideKind kind, std::uint64_t seed, int strokes = 100);
+
 }  // namespace frictiond::testing
