@@ -87,10 +87,17 @@ TEST(StochasticModel, SlipLikelihoodAndGripForce) {
   ASSERT_TRUE(coffee.attainable) << coffee.why;
   ASSERT_TRUE(shirt.attainable) << shirt.why;
   EXPECT_GT(coffee.fn_n, shirt.fn_n);
-  // At the returned force the risk-quantile of mu exactly holds the load.
-  const double q = m.mu_fn_only.beta(0) + m.mu_fn_only.beta(1) * shirt.fn_n +
-                   CalcEpsQuantile(m.mu_fn_only, 0.05);
+  // At the returned force the risk-quantile of mu from eq. (1) at rest
+  // (v = 0, grip_force.h) exactly holds the load.
+  EXPECT_EQ(shirt.instant_risk, 0.05);  // one instant: the risk itself
+  const double q =
+      m.mu.beta(0) + m.mu.beta(2) * shirt.fn_n + CalcEpsQuantile(m.mu, 0.05);
   EXPECT_NEAR(q * shirt.fn_n, 1.0, 1e-9);
+  // At rest the mean mu is lower than the Fn-only model's, which averages
+  // b1 v over the data's sliding speeds (b1 > 0).
+  EXPECT_NEAR(m.mu_fn_only.beta(0) - m.mu.beta(0),
+              m.mu.beta(1) * m.inputs.at("v_mm_s").mean,
+              0.02);
   // mu falls with Fn here (b2 < 0), so Fn * mu(Fn) peaks: a heavy load is
   // unattainable.
   const GripForce heavy = CalcGripForce(m, 10.0, 0.001);
