@@ -2,10 +2,10 @@
 // the daemon (cmake/EmbedFiles.cmake), at GET / and GET /console/{file},
 // and the read route its plots need, GET /v1/materials/{id}/samples.
 #include <algorithm>
-#include <map>
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <map>
 #include <optional>
 #include <string>
 #include <utility>
