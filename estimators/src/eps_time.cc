@@ -214,15 +214,23 @@ EpsTimeModel FitEpsTimeModel(const std::vector<double>& residuals,
     out.why = std::to_string(n) + " residuals (need more)";
     return out;
   }
-  // Normal scores z = Phi^-1((rank + 0.5) / n): the copula's latent values.
-  std::vector<std::size_t> order(n);
-  for (std::size_t i = 0; i < n; ++i) order[i] = i;
-  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    return residuals[a] < residuals[b];
-  });
+  // Standardised residuals z = (r - mean) / sd: their autocorrelations
+  // stand in for the copula's latent ones (equal for Gaussian eps; O(n),
+  // no sort, so identification stays cheap).
+  double mean = 0;
+  for (std::size_t i = 0; i < n; ++i) mean += residuals[i];
+  mean /= n;
+  double var = 0;
+  for (std::size_t i = 0; i < n; ++i)
+    var += (residuals[i] - mean) * (residuals[i] - mean);
+  var /= n;
+  if (!(var > 0)) {
+    out.why = "residuals have no spread";
+    return out;
+  }
+  const double inv_sd = 1.0 / std::sqrt(var);
   std::vector<double> z(n);
-  for (std::size_t r = 0; r < n; ++r)
-    z[order[r]] = NormalQuantile((r + 0.5) / n);
+  for (std::size_t i = 0; i < n; ++i) z[i] = (residuals[i] - mean) * inv_sd;
   double g0 = 0, g1 = 0, g2 = 0;
   std::size_t n1 = 0, n2 = 0;
   std::vector<int> lengths;
@@ -271,13 +279,17 @@ EpsTimeModel FitEpsTimeModel(const std::vector<double>& residuals,
   }
   out.effective_samples = n_eff;
   // Generalised Pareto lower tail by probability-weighted moments on the
-  // excesses below the 2 % quantile (order[] sorts the residuals).
+  // excesses below the 2 % quantile (the lowest 2 %: a partial selection,
+  // then a sort of that 2 % only).
   const std::size_t m_tail = static_cast<std::size_t>(0.02 * n);
   if (m_tail >= 20) {
-    const double u0 = residuals[order[m_tail]];
+    std::vector<double> low(residuals.begin(), residuals.begin() + n);
+    std::nth_element(low.begin(), low.begin() + m_tail, low.end());
+    const double u0 = low[m_tail];
+    low.resize(m_tail);
     std::vector<double> y(m_tail);
-    for (std::size_t i = 0; i < m_tail; ++i)
-      y[i] = u0 - residuals[order[m_tail - 1 - i]];  // ascending excesses
+    for (std::size_t i = 0; i < m_tail; ++i) y[i] = u0 - low[i];
+    std::sort(y.begin(), y.end());  // ascending excesses
     double a0 = 0, a1 = 0;
     for (std::size_t i = 0; i < m_tail; ++i) {
       const double p = (i + 1 - 0.35) / m_tail;

@@ -17,8 +17,9 @@
 /// variance that stays constant within an episode (a stroke's, or a grasp's,
 /// offset: "across episodes"), phi the AR(1) coefficient per sample of the
 /// rest ("within episodes"). Both are identified by the method of moments
-/// from the lag-0, -1 and -2 autocovariances of the normal scores of the
-/// residuals, pooled over consecutive slipping samples of each episode:
+/// from the lag-0, -1 and -2 autocovariances of the standardised residuals
+/// (standing in for the latent z: equal for Gaussian eps), pooled over
+/// consecutive slipping samples of each episode:
 ///   g0 = 1, g1 = f + (1 - f) phi, g2 = f + (1 - f) phi^2
 ///   => phi = (g1 - g2) / (g0 - g1),  1 - f = (g0 - g1) / (1 - phi).
 ///
