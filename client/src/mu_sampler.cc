@@ -1,0 +1,158 @@
+#include "frictiond/client/mu_sampler.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include <Eigen/Core>
+
+#include "frictiond/estimators/stats.h"
+
+namespace frictiond {
+
+namespace {
+
+// Buckets of the O(1) quantile-segment lookup over p in [0, 1).
+constexpr int kBuckets = 4096;
+// Terms evaluated on the stack; larger models fall back to PredictMu.
+constexpr int kMaxStackTerms = 32;
+
+// Phi^-1(u) for u in [0, 1); u = 0 (a draw of 2^-53 odds) is moved to the
+// smallest positive double so the AR(1) state never becomes -inf.
+double NormalScore(double u) {
+  return NormalQuantile(std::max(u, std::numeric_limits<double>::min()));
+}
+
+}  // namespace
+
+MuSampler::MuSampler(const StochasticFrictionModel& model) : model_(model) {
+  const RegressionModel& m = model_.mu;
+  if (m.beta.size() != static_cast<Eigen::Index>(m.terms.size()))
+    throw std::invalid_argument(
+        "model: mu has " + std::to_string(m.terms.size()) + " terms but " +
+        std::to_string(m.beta.size()) + " coefficients");
+  // The x of PredictMu: intercept 1, fn_n and v_mm_s given, any other input
+  // at its fitted mean (0 when unknown).
+  for (const Term& t : m.terms) {
+    if (t.kind == TermKind::kIntercept) {
+      source_.push_back(Source::kConstant);
+      constant_.push_back(1.0);
+    } else if (t.input == "fn_n") {
+      source_.push_back(Source::kFn);
+      constant_.push_back(0.0);
+    } else if (t.input == "v_mm_s") {
+      source_.push_back(Source::kV);
+      constant_.push_back(0.0);
+    } else {
+      const auto it = model_.inputs.find(t.input);
+      source_.push_back(Source::kConstant);
+      constant_.push_back(
+          t.Eval(it != model_.inputs.end() ? it->second.mean : 0.0));
+    }
+  }
+  // segment_[b] = index of the first level > b / kBuckets (upper_bound), the
+  // starting point of the search for any p in bucket b.
+  const auto& levels = EpsQuantileLevels();
+  table_ = m.eps_quantiles.size() == levels.size() && levels.size() < 65535;
+  if (table_) {
+    segment_.resize(kBuckets);
+    for (int b = 0; b < kBuckets; ++b) {
+      const double p = static_cast<double>(b) / kBuckets;
+      segment_[b] = static_cast<std::uint16_t>(
+          std::upper_bound(levels.begin(), levels.end(), p) - levels.begin());
+    }
+  }
+}
+
+double MuSampler::CalcMean(double fn_n, double v_mm_s) const {
+  const RegressionModel& m = model_.mu;
+  const std::size_t n = m.terms.size();
+  if (n > static_cast<std::size_t>(kMaxStackTerms))
+    return PredictMu(model_, fn_n, v_mm_s).mu;
+  // Same arithmetic as PredictMu: beta.dot(x) over an aligned vector, so the
+  // result is the same bit for bit.
+  alignas(EIGEN_MAX_ALIGN_BYTES) double x[kMaxStackTerms];
+  for (std::size_t k = 0; k < n; ++k) {
+    switch (source_[k]) {
+      case Source::kFn:
+        x[k] = m.terms[k].Eval(fn_n);
+        break;
+      case Source::kV:
+        x[k] = m.terms[k].Eval(v_mm_s);
+        break;
+      case Source::kConstant:
+        x[k] = constant_[k];
+        break;
+    }
+  }
+  const Eigen::Map<const Eigen::VectorXd, Eigen::AlignedMax> xv(
+      x, static_cast<Eigen::Index>(n));
+  return m.beta.dot(xv);
+}
+
+double MuSampler::CalcEpsQuantile(double p) const {
+  if (!table_) return frictiond::CalcEpsQuantile(model_.mu, p);
+  // The arithmetic of CalcEpsQuantile; only the search is a table lookup.
+  const auto& levels = EpsQuantileLevels();
+  const auto& q = model_.mu.eps_quantiles;
+  if (!(p > levels.front())) return std::isnan(p) ? p : q.front();
+  if (p >= levels.back()) return q.back();
+  std::size_t k = segment_[static_cast<int>(p * kBuckets)];
+  while (levels[k] <= p) ++k;  // levels.back() > p ends the walk
+  const double w = (p - levels[k - 1]) / (levels[k] - levels[k - 1]);
+  return q[k - 1] + w * (q[k] - q[k - 1]);
+}
+
+bool EpisodeSampleOptions::IsValid(std::string* why) const {
+  std::string w;
+  if (!(envs > 0)) {
+    w = "envs = " + std::to_string(envs) + " (must be > 0)";
+  } else if (!(steps > 0)) {
+    w = "steps = " + std::to_string(steps) + " (must be > 0)";
+  } else if (!(ar1 >= 0 && ar1 <= 1)) {
+    w = "ar1 = " + std::to_string(ar1) + " (must be in [0, 1])";
+  }
+  if (why) *why = w;
+  return w.empty();
+}
+
+void SampleMuEpisodes(const MuSampler& sampler,
+                      StridedInput fn_n,
+                      StridedInput v_mm_s,
+                      const EpisodeSampleOptions& options,
+                      UniformSource uniform,
+                      double* out) {
+  std::string why;
+  if (!options.IsValid(&why)) throw std::invalid_argument(why);
+  if (!uniform.next || !out || !fn_n.data || !v_mm_s.data)
+    throw std::invalid_argument("SampleMuEpisodes: null input or output");
+  const int n = options.envs;
+  const int t_max = options.steps;
+  const double phi = options.ar1;
+  const double innovation = std::sqrt(std::max(0.0, 1.0 - phi * phi));
+  for (int env = 0; env < n; ++env) {
+    double* row = out + static_cast<std::ptrdiff_t>(env) * t_max;
+    if (phi == 0.0) {
+      for (int t = 0; t < t_max; ++t) {
+        row[t] = sampler.Draw(fn_n.at(env, t), v_mm_s.at(env, t), uniform());
+      }
+      continue;
+    }
+    // AR(1) on the normal scores; the stationary start makes every step's
+    // marginal the model's eps distribution.
+    double z = 0.0;
+    for (int t = 0; t < t_max; ++t) {
+      if (t == 0) {
+        z = NormalScore(uniform());
+      } else if (phi < 1.0) {
+        z = phi * z + innovation * NormalScore(uniform());
+      }
+      const double p = NormalCdf(z);
+      row[t] = sampler.CalcMean(fn_n.at(env, t), v_mm_s.at(env, t)) +
+               sampler.CalcEpsQuantile(p);
+    }
+  }
+}
+
+}  // namespace frictiond
