@@ -51,6 +51,18 @@ MuSampler::MuSampler(const StochasticFrictionModel& model) : model_(model) {
           t.Eval(it != model_.inputs.end() ? it->second.mean : 0.0));
     }
   }
+  q_lo95_ = frictiond::CalcEpsQuantile(m, 0.025);
+  q_hi95_ = frictiond::CalcEpsQuantile(m, 0.975);
+  if (const auto it = model_.inputs.find("fn_n"); it != model_.inputs.end()) {
+    has_fn_range_ = true;
+    fn_min_ = it->second.min;
+    fn_max_ = it->second.max;
+  }
+  if (const auto it = model_.inputs.find("v_mm_s"); it != model_.inputs.end()) {
+    has_v_range_ = true;
+    v_min_ = it->second.min;
+    v_max_ = it->second.max;
+  }
   // segment_[b] = index of the first level > b / kBuckets (upper_bound), the
   // starting point of the search for any p in bucket b.
   const auto& levels = EpsQuantileLevels();
@@ -65,14 +77,10 @@ MuSampler::MuSampler(const StochasticFrictionModel& model) : model_(model) {
   }
 }
 
-double MuSampler::CalcMean(double fn_n, double v_mm_s) const {
+bool MuSampler::FillRegressors(double fn_n, double v_mm_s, double* x) const {
   const RegressionModel& m = model_.mu;
   const std::size_t n = m.terms.size();
-  if (n > static_cast<std::size_t>(kMaxStackTerms))
-    return PredictMu(model_, fn_n, v_mm_s).mu;
-  // Same arithmetic as PredictMu: beta.dot(x) over an aligned vector, so the
-  // result is the same bit for bit.
-  alignas(EIGEN_MAX_ALIGN_BYTES) double x[kMaxStackTerms];
+  if (n > static_cast<std::size_t>(kMaxStackTerms)) return false;
   for (std::size_t k = 0; k < n; ++k) {
     switch (source_[k]) {
       case Source::kFn:
@@ -86,9 +94,53 @@ double MuSampler::CalcMean(double fn_n, double v_mm_s) const {
         break;
     }
   }
+  return true;
+}
+
+double MuSampler::CalcMean(double fn_n, double v_mm_s) const {
+  const RegressionModel& m = model_.mu;
+  // Same arithmetic as PredictMu: beta.dot(x) over an aligned vector, so the
+  // result is the same bit for bit.
+  alignas(EIGEN_MAX_ALIGN_BYTES) double x[kMaxStackTerms];
+  if (!FillRegressors(fn_n, v_mm_s, x))
+    return PredictMu(model_, fn_n, v_mm_s).mu;
+  const std::size_t n = m.terms.size();
   const Eigen::Map<const Eigen::VectorXd, Eigen::AlignedMax> xv(
       x, static_cast<Eigen::Index>(n));
   return m.beta.dot(xv);
+}
+
+MuPoint MuSampler::CalcPrediction(double fn_n, double v_mm_s) const {
+  const RegressionModel& m = model_.mu;
+  alignas(EIGEN_MAX_ALIGN_BYTES) double x[kMaxStackTerms];
+  alignas(EIGEN_MAX_ALIGN_BYTES) double px[kMaxStackTerms];
+  MuPoint out;
+  if (!FillRegressors(fn_n, v_mm_s, x)) {
+    const MuPrediction p = PredictMu(model_, fn_n, v_mm_s);
+    out.mu = p.mu;
+    out.sigma = p.sigma;
+    out.lo95 = p.lo95;
+    out.hi95 = p.hi95;
+    out.extrapolated = p.extrapolated;
+    return out;
+  }
+  // PredictMu's arithmetic, step for step (see stochastic_model.cc).
+  const auto n = static_cast<Eigen::Index>(m.terms.size());
+  const Eigen::Map<const Eigen::VectorXd, Eigen::AlignedMax> xv(x, n);
+  out.extrapolated = (has_fn_range_ && (fn_n < fn_min_ || fn_n > fn_max_)) ||
+                     (has_v_range_ && (v_mm_s < v_min_ || v_mm_s > v_max_));
+  out.mu = m.beta.dot(xv);
+  double var_param = 0.0;
+  if (m.P_beta.rows() == n) {
+    Eigen::Map<Eigen::VectorXd, Eigen::AlignedMax> pxv(px, n);
+    pxv.noalias() = m.P_beta * xv;
+    var_param = std::max(0.0, xv.dot(pxv));
+  }
+  out.sigma = std::sqrt(m.sigma_eps * m.sigma_eps + var_param);
+  const double widen = m.sigma_eps > 0 ? out.sigma / m.sigma_eps : 1.0;
+  out.lo95 = out.mu + widen * q_lo95_;
+  out.hi95 = out.mu + widen * q_hi95_;
+  return out;
 }
 
 double MuSampler::CalcEpsQuantile(double p) const {

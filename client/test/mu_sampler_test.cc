@@ -57,6 +57,33 @@ TEST(MuSamplerTest, MeanEqualsPredictMuBitForBit) {
   }
 }
 
+TEST(MuSamplerTest, PredictionEqualsPredictMuBitForBit) {
+  for (bool extended : {false, true}) {
+    const StochasticFrictionModel model = MakeModel(extended);
+    const MuSampler sampler(model);
+    std::mt19937_64 gen(13);
+    // Wider than the fitted ranges, so extrapolation is flagged too.
+    std::uniform_real_distribution<double> fn(0.01, 6.0), v(0.0, 90.0);
+    int flagged = 0;
+    for (int i = 0; i < 20000; ++i) {
+      const double f = fn(gen), s = v(gen);
+      const MuPrediction want = PredictMu(model, f, s);
+      const MuPoint got = sampler.CalcPrediction(f, s);
+      ASSERT_EQ(got.mu, want.mu) << f << " " << s;
+      ASSERT_EQ(got.sigma, want.sigma) << f << " " << s;
+      ASSERT_EQ(got.lo95, want.lo95) << f << " " << s;
+      ASSERT_EQ(got.hi95, want.hi95) << f << " " << s;
+      ASSERT_EQ(got.extrapolated, want.extrapolated) << f << " " << s;
+      flagged += got.extrapolated;
+    }
+    EXPECT_GT(flagged, 1000);
+    EXPECT_LT(flagged, 19000);
+    const double nan = std::nan("");
+    EXPECT_EQ(sampler.CalcPrediction(nan, 1.0).extrapolated,
+              PredictMu(model, nan, 1.0).extrapolated);
+  }
+}
+
 TEST(MuSamplerTest, EpsQuantileEqualsEstimatorBitForBit) {
   const StochasticFrictionModel model = MakeModel(false);
   const MuSampler sampler(model);

@@ -330,7 +330,7 @@ class Model {
 };
 
 py::object Predict(const Model& model, py::handle fn_n, py::handle v_mm_s) {
-  const StochasticFrictionModel& m = model.stochastic();
+  const MuSampler& s = model.sampler();
   const Broadcast bc = MakeBroadcast(
       {{"fn_n", AsArray(fn_n, "fn_n")}, {"v_mm_s", AsArray(v_mm_s, "v_mm_s")}});
   auto mu = NewArray<double>(bc.shape), sigma = NewArray<double>(bc.shape),
@@ -344,7 +344,7 @@ py::object Predict(const Model& model, py::handle fn_n, py::handle v_mm_s) {
   {
     py::gil_scoped_release nogil;
     ForEach<2>(bc, [&](py::ssize_t i, const double* x) {
-      const MuPrediction p = PredictMu(m, x[0], x[1]);
+      const MuPoint p = s.CalcPrediction(x[0], x[1]);
       pm[i] = p.mu;
       ps[i] = p.sigma;
       pl[i] = p.lo95;
@@ -643,7 +643,8 @@ constexpr const char* kPredictDoc =
 
 Paper 000 eq. (1): mu = b0 + b1*v + b2*Fn (+ the terms of an extended
 model, whose other inputs take their fitted mean), with eps from its
-empirical distribution. Evaluated by the C++ PredictMu for every element.
+empirical distribution. Evaluated by the C++ client library for every
+element (MuSampler::CalcPrediction, equal bit for bit to PredictMu).
 
 Args:
     fn_n: normal force [N]; a number or an array.

@@ -43,8 +43,18 @@ struct UniformSource {
   double operator()() const { return next(state); }
 };
 
-/// Draws mu from a stochastic model. Copyable; keeps a copy of the model,
-/// so the model it was built from may go away. Thread-safe (const).
+/// PredictMu's numbers at (fn_n, v_mm_s), without its names and allocations.
+struct MuPoint {
+  double mu = 0.0;            ///< mean mu [-]
+  double sigma = 0.0;         ///< sqrt(sigma_eps^2 + x' P_beta x) [-]
+  double lo95 = 0.0;          ///< 2.5 % quantile [-]
+  double hi95 = 0.0;          ///< 97.5 % quantile [-]
+  bool extrapolated = false;  ///< fn_n or v_mm_s outside its fitted range
+};
+
+/// Draws mu from a stochastic model, and evaluates PredictMu's numbers on
+/// many points (the Python module's predict). Copyable; keeps a copy of the
+/// model, so the model it was built from may go away. Thread-safe (const).
 class MuSampler {
  public:
   /// @throws std::invalid_argument when the model has no coefficients
@@ -55,6 +65,10 @@ class MuSampler {
   /// than these take their fitted mean. Equals PredictMu(model, fn_n,
   /// v_mm_s).mu.
   double CalcMean(double fn_n, double v_mm_s) const;
+  /// mu, sigma, interval and extrapolation at (fn_n, v_mm_s). Equals the
+  /// same fields of PredictMu(model, fn_n, v_mm_s) bit for bit (the
+  /// extrapolated input names are left out).
+  MuPoint CalcPrediction(double fn_n, double v_mm_s) const;
   /// Empirical eps quantile at probability p. Equals
   /// CalcEpsQuantile(model.mu, p).
   double CalcEpsQuantile(double p) const;
@@ -68,9 +82,17 @@ class MuSampler {
  private:
   // Where term k's input comes from.
   enum class Source { kFn, kV, kConstant };
+  // Fills x (PredictMu's regressors); false when the model has more terms
+  // than the stack buffer (callers then use PredictMu).
+  bool FillRegressors(double fn_n, double v_mm_s, double* x) const;
   StochasticFrictionModel model_;
   std::vector<Source> source_;          // per term
   std::vector<double> constant_;        // per term: its x when kConstant
+  double q_lo95_ = 0.0, q_hi95_ = 0.0;  // eps quantiles at 0.025, 0.975
+  // Fitted ranges of fn_n and v_mm_s (empty range = not fitted: never
+  // flagged).
+  bool has_fn_range_ = false, has_v_range_ = false;
+  double fn_min_ = 0, fn_max_ = 0, v_min_ = 0, v_max_ = 0;
   bool table_ = false;                  // eps quantiles usable for the table
   std::vector<std::uint16_t> segment_;  // per bucket: first level index > p
 };
