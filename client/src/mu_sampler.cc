@@ -39,10 +39,12 @@ MuSampler::MuSampler(const StochasticFrictionModel& model) : model_(model) {
       source_.push_back(Source::kConstant);
       constant_.push_back(1.0);
     } else if (t.input == "fn_n") {
-      source_.push_back(Source::kFn);
+      source_.push_back(t.kind == TermKind::kLinear ? Source::kFnLinear
+                                                    : Source::kFn);
       constant_.push_back(0.0);
     } else if (t.input == "v_mm_s") {
-      source_.push_back(Source::kV);
+      source_.push_back(t.kind == TermKind::kLinear ? Source::kVLinear
+                                                    : Source::kV);
       constant_.push_back(0.0);
     } else {
       const auto it = model_.inputs.find(t.input);
@@ -66,6 +68,7 @@ MuSampler::MuSampler(const StochasticFrictionModel& model) : model_(model) {
   // segment_[b] = index of the first level > b / kBuckets (upper_bound), the
   // starting point of the search for any p in bucket b.
   const auto& levels = EpsQuantileLevels();
+  levels_ = levels;
   table_ = m.eps_quantiles.size() == levels.size() && levels.size() < 65535;
   if (table_) {
     segment_.resize(kBuckets);
@@ -89,6 +92,12 @@ bool MuSampler::FillRegressors(double fn_n, double v_mm_s, double* x) const {
       case Source::kV:
         x[k] = m.terms[k].Eval(v_mm_s);
         break;
+      case Source::kFnLinear:  // Term::Eval of kLinear is x itself
+        x[k] = fn_n;
+        break;
+      case Source::kVLinear:
+        x[k] = v_mm_s;
+        break;
       case Source::kConstant:
         x[k] = constant_[k];
         break;
@@ -105,6 +114,14 @@ double MuSampler::CalcMean(double fn_n, double v_mm_s) const {
   if (!FillRegressors(fn_n, v_mm_s, x))
     return PredictMu(model_, fn_n, v_mm_s).mu;
   const std::size_t n = m.terms.size();
+  // Up to 3 terms Eigen's dot adds left to right (one SSE2 packet holds two
+  // products, summed, then the third is added; AVX packets of 4 are not
+  // used below 4 terms), so the plain sum is the same number, faster.
+  if (n <= 3) {
+    double sum = n ? m.beta(0) * x[0] : 0.0;
+    for (std::size_t k = 1; k < n; ++k) sum += m.beta(k) * x[k];
+    return sum;
+  }
   const Eigen::Map<const Eigen::VectorXd, Eigen::AlignedMax> xv(
       x, static_cast<Eigen::Index>(n));
   return m.beta.dot(xv);
@@ -146,10 +163,10 @@ MuPoint MuSampler::CalcPrediction(double fn_n, double v_mm_s) const {
 double MuSampler::CalcEpsQuantile(double p) const {
   if (!table_) return frictiond::CalcEpsQuantile(model_.mu, p);
   // The arithmetic of CalcEpsQuantile; only the search is a table lookup.
-  const auto& levels = EpsQuantileLevels();
-  const auto& q = model_.mu.eps_quantiles;
-  if (!(p > levels.front())) return std::isnan(p) ? p : q.front();
-  if (p >= levels.back()) return q.back();
+  const double* levels = levels_.data();
+  const double* q = model_.mu.eps_quantiles.data();
+  if (!(p > levels[0])) return std::isnan(p) ? p : q[0];
+  if (p >= levels_.back()) return q[levels_.size() - 1];
   std::size_t k = segment_[static_cast<int>(p * kBuckets)];
   while (levels[k] <= p) ++k;  // levels.back() > p ends the walk
   const double w = (p - levels[k - 1]) / (levels[k] - levels[k - 1]);

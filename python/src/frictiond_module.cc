@@ -195,12 +195,13 @@ void ForEach(const Broadcast& bc, F&& f) {
   const py::ssize_t inner = nd ? bc.shape[nd - 1] : 1;
   py::ssize_t out = 0;
   double x[N];
+  py::ssize_t inner_stride[N];
+  for (std::size_t j = 0; j < N; ++j)
+    inner_stride[j] = nd ? bc.operands[j].strides[nd - 1] : 0;
   while (true) {
     for (py::ssize_t i = 0; i < inner; ++i) {
-      for (std::size_t j = 0; j < N; ++j) {
-        const py::ssize_t s = nd ? bc.operands[j].strides[nd - 1] : 0;
-        std::memcpy(&x[j], base[j] + i * s, sizeof(double));
-      }
+      for (std::size_t j = 0; j < N; ++j)
+        std::memcpy(&x[j], base[j] + i * inner_stride[j], sizeof(double));
       f(out++, x);
     }
     // Advance the odometer over the outer dimensions.

@@ -81,7 +81,8 @@ class MuSampler {
 
  private:
   // Where term k's input comes from.
-  enum class Source { kFn, kV, kConstant };
+  // (kFnLinear, kVLinear: a linear term, x = the input itself.)
+  enum class Source { kFn, kV, kFnLinear, kVLinear, kConstant };
   // Fills x (PredictMu's regressors); false when the model has more terms
   // than the stack buffer (callers then use PredictMu).
   bool FillRegressors(double fn_n, double v_mm_s, double* x) const;
@@ -93,7 +94,9 @@ class MuSampler {
   // flagged).
   bool has_fn_range_ = false, has_v_range_ = false;
   double fn_min_ = 0, fn_max_ = 0, v_min_ = 0, v_max_ = 0;
-  bool table_ = false;                  // eps quantiles usable for the table
+  bool table_ = false;
+  std::vector<double> levels_;  // EpsQuantileLevels(), kept at hand // eps
+                                // quantiles usable for the table
   std::vector<std::uint16_t> segment_;  // per bucket: first level index > p
 };
 
