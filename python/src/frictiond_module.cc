@@ -811,6 +811,14 @@ PYBIND11_MODULE(_core, m) {
                                const auto& q = s.stochastic().mu.eps_quantiles;
                                return py::array_t<double>(q.size(), q.data());
                              })
+      .def("__repr__",
+           [](const Model& s) {
+             return "<frictiond.Model " + s.set().material +
+                    " fingertip=" + s.set().fingertip +
+                    " version=" + std::to_string(s.set().version) +
+                    " source=" + s.info().source +
+                    (s.info().stale ? " stale" : "") + ">";
+           })
       .def("to_json",
            [](const Model& s) { return ToPython(ModelSetToJson(s.set())); })
       .def("predict", &Predict, py::arg("fn_n"), py::arg("v_mm_s"), kPredictDoc)
@@ -878,6 +886,10 @@ PYBIND11_MODULE(_core, m) {
            py::arg("timeout_s") = 5.0)
       .def_property_readonly(
           "url", [](const Client& c) { return c.options().base_url; })
+      .def("__repr__",
+           [](const Client& c) {
+             return "<frictiond.Client " + c.options().base_url + ">";
+           })
       .def("materials", &Client::Materials)
       .def("model",
            &Client::FetchModel,

@@ -140,6 +140,22 @@ def test_cached_model_offline(felt, tmp_path):
     # Nothing cached for another material: the error says no daemon answered.
     with pytest.raises(frictiond.UnreachableError):
         dead.model("canvas")
+    with pytest.raises(frictiond.UnreachableError):
+        dead.resync()
+    # Back online, resync refreshes every cached model.
+    entries = frictiond.Client(felt.url, cache_dir=cache).resync()
+    assert [(e["material"], e["error"]) for e in entries] == [("felt", "")]
+    assert entries[0]["version"] == online.version
+
+
+def test_docstrings_carry_units():
+    for method, unit in ((frictiond.Model.predict, "[mm/s]"),
+                         (frictiond.Model.slip_likelihood, "[N]"),
+                         (frictiond.Model.grip_force, "[s]"),
+                         (frictiond.Model.sample_mu, "[N]"),
+                         (frictiond.Model.sample_mu_episodes, "(n_envs, n_steps)")):
+        assert unit in method.__doc__, method
+    assert "token" in frictiond.Client.__doc__
 
 
 def test_model_json_round_trip(model):
