@@ -480,7 +480,11 @@ py::array_t<double> SampleMuEpisodesPy(const Model& model,
                             "' (must be 'model', None or a number in [0, 1])");
     o.ar1 = model.eps_ar1().value_or(0.0);
   } else {
-    o.ar1 = ar1.cast<double>();
+    try {
+      o.ar1 = ar1.cast<double>();
+    } catch (const py::cast_error&) {
+      throw py::type_error("ar1: expected 'model', None or a number in [0, 1]");
+    }
   }
   std::string why;
   if (!o.IsValid(&why)) throw py::value_error(why);

@@ -326,6 +326,10 @@ def test_episodes_per_environment_inputs(model):
         model.sample_mu_episodes(8, 100, np.ones(7)[:, None], 30.0)
     with pytest.raises(ValueError, match="ar1 = 1.5"):
         model.sample_mu_episodes(8, 100, 2.0, 30.0, ar1=1.5)
+    with pytest.raises(TypeError, match="ar1"):
+        model.sample_mu_episodes(8, 100, 2.0, 30.0, ar1=[0.5])
+    with pytest.raises(ValueError, match="ar1"):
+        model.sample_mu_episodes(8, 100, 2.0, 30.0, ar1="strong")
     with pytest.raises(ValueError, match="envs = 0"):
         model.sample_mu_episodes(0, 100, 2.0, 30.0)
 
