@@ -181,6 +181,9 @@ bool EpisodeSampleOptions::IsValid(std::string* why) const {
     w = "steps = " + std::to_string(steps) + " (must be > 0)";
   } else if (!(ar1 >= 0 && ar1 <= 1)) {
     w = "ar1 = " + std::to_string(ar1) + " (must be in [0, 1])";
+  } else if (!(offset_fraction >= 0 && offset_fraction <= 1)) {
+    w = "offset_fraction = " + std::to_string(offset_fraction) +
+        " (must be in [0, 1])";
   }
   if (why) *why = w;
   return w.empty();
@@ -199,25 +202,31 @@ void SampleMuEpisodes(const MuSampler& sampler,
   const int n = options.envs;
   const int t_max = options.steps;
   const double phi = options.ar1;
+  const double f = options.offset_fraction;
   const double innovation = std::sqrt(std::max(0.0, 1.0 - phi * phi));
+  const double offset_scale = std::sqrt(f);
+  const double ar_scale = std::sqrt(std::max(0.0, 1.0 - f));
   for (int env = 0; env < n; ++env) {
     double* row = out + static_cast<std::ptrdiff_t>(env) * t_max;
-    if (phi == 0.0) {
+    if (phi == 0.0 && f == 0.0) {
       for (int t = 0; t < t_max; ++t) {
         row[t] = sampler.Draw(fn_n.at(env, t), v_mm_s.at(env, t), uniform());
       }
       continue;
     }
-    // AR(1) on the normal scores; the stationary start makes every step's
-    // marginal the model's eps distribution.
-    double z = 0.0;
+    // The stationary start (w_0 ~ N(0, 1)) makes every step's marginal the
+    // model's eps distribution.
+    const double offset = f > 0.0 ? offset_scale * NormalScore(uniform()) : 0.0;
+    double w = 0.0;
     for (int t = 0; t < t_max; ++t) {
-      if (t == 0) {
-        z = NormalScore(uniform());
-      } else if (phi < 1.0) {
-        z = phi * z + innovation * NormalScore(uniform());
+      if (f < 1.0) {
+        if (t == 0) {
+          w = NormalScore(uniform());
+        } else if (phi < 1.0) {
+          w = phi * w + innovation * NormalScore(uniform());
+        }
       }
-      const double p = NormalCdf(z);
+      const double p = NormalCdf(offset + ar_scale * w);
       row[t] = sampler.CalcMean(fn_n.at(env, t), v_mm_s.at(env, t)) +
                sampler.CalcEpsQuantile(p);
     }

@@ -201,6 +201,42 @@ TEST(MuSamplerTest, Ar1KeepsTheMarginalAndTheCorrelation) {
   }
 }
 
+TEST(MuSamplerTest, EpisodeOffsetAddsAConstantCorrelation) {
+  // corr(z_t, z_{t+k}) = f + (1 - f) phi^k, recovered from the samples'
+  // normal scores at lags 1 and 10, for offsets with and without AR(1).
+  const StochasticFrictionModel model = MakeModel(false);
+  const MuSampler sampler(model);
+  const double fn = 2.0, v = 10.0;
+  const double mean = sampler.CalcMean(fn, v);
+  for (const auto& [f, phi] : {std::pair{0.4, 0.0}, std::pair{0.3, 0.8}}) {
+    EpisodeSampleOptions o;
+    o.envs = 4000;
+    o.steps = 12;
+    o.ar1 = phi;
+    o.offset_fraction = f;
+    Mt g{std::mt19937_64(23)};
+    std::vector<double> out(o.envs * o.steps);
+    SampleMuEpisodes(
+        sampler, {&fn, 0, 0}, {&v, 0, 0}, o, {&Mt::Next, &g}, out.data());
+    for (int lag : {1, 10}) {
+      double sxy = 0, sxx = 0, syy = 0;
+      for (int e = 0; e < o.envs; ++e) {
+        const double x =
+            NormalQuantile(CalcEpsCdf(model.mu, out[e * o.steps] - mean));
+        const double y =
+            NormalQuantile(CalcEpsCdf(model.mu, out[e * o.steps + lag] - mean));
+        if (!std::isfinite(x) || !std::isfinite(y)) continue;
+        sxy += x * y;
+        sxx += x * x;
+        syy += y * y;
+      }
+      const double want = f + (1 - f) * std::pow(phi, lag);
+      EXPECT_NEAR(sxy / std::sqrt(sxx * syy), want, 0.04)
+          << "f=" << f << " phi=" << phi << " lag=" << lag;
+    }
+  }
+}
+
 TEST(MuSamplerTest, Ar1OfOneHoldsOneDrawPerEpisode) {
   const StochasticFrictionModel model = MakeModel(false);
   const MuSampler sampler(model);
@@ -233,6 +269,10 @@ TEST(MuSamplerTest, RejectsBadOptionsNamingTheField) {
   EXPECT_EQ(why, "ar1 = 1.500000 (must be in [0, 1])");
   o.ar1 = std::nan("");
   EXPECT_FALSE(o.IsValid(&why));
+  o.ar1 = 0.5;
+  o.offset_fraction = -0.1;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_EQ(why, "offset_fraction = -0.100000 (must be in [0, 1])");
   o = {};
   o.envs = 0;
   EXPECT_FALSE(o.IsValid(&why));

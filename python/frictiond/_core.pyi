@@ -26,7 +26,8 @@ class Model:
     fetched_at: str
     daemon_error: str
     has_stochastic: bool
-    eps_ar1: Optional[float]  # identified step-to-step eps correlation
+    eps_ar1: Optional[float]  # identified AR(1) coefficient of eps per data sample
+    eps_time: Optional[Dict[str, float]]  # dt_s [s], phi, offset_fraction; None when not identified
     sigma_eps: float  # residual sd of eq. (1) [-]
     coefficients: Dict[str, float]  # by term: intercept, v_mm_s, fn_n, ...
     eps_levels: npt.NDArray[np.float64]  # probability levels [-]
@@ -54,6 +55,8 @@ class Model:
         v_mm_s: ArrayLike,
         rng: Rng = None,
         ar1: Union[Literal["model"], float, None] = "model",
+        offset_fraction: Union[Literal["model"], float, None] = "model",
+        dt_s: Optional[float] = None,
     ) -> npt.NDArray[np.float64]:
         """(n_envs, n_steps) mu [-] for domain randomisation."""
     def _predict_scalar(self, fn_n: float, v_mm_s: float) -> Tuple[float, float, float, float, bool]: ...

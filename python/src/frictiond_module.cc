@@ -320,9 +320,19 @@ class Model {
     return *sampler_;
   }
 
-  // The model's step-to-step eps correlation (AR(1) coefficient), when the
-  // model JSON has one.
-  std::optional<double> eps_ar1() const { return std::nullopt; }
+  // The model's identified eps time structure, when it has one: the AR(1)
+  // coefficient phi per sample of dt_s seconds and the per-episode offset
+  // share (eps_time.h of issue 19; not in this build's library yet).
+  struct EpsTime {
+    double dt_s = 0.0;
+    double phi = 0.0;
+    double offset_fraction = 0.0;
+  };
+  std::optional<EpsTime> eps_time() const { return std::nullopt; }
+  std::optional<double> eps_ar1() const {
+    if (const auto t = eps_time()) return t->phi;
+    return std::nullopt;
+  }
 
  private:
   ModelSet set_;
@@ -461,31 +471,56 @@ py::array_t<double> SampleMu(const Model& model,
   return out;
 }
 
+// A correlation argument: "model" (the model's value, or 0 without one),
+// None (0) or a number.
+double CorrelationArg(const py::object& arg,
+                      const char* name,
+                      std::optional<double> from_model) {
+  if (arg.is_none()) return 0.0;
+  if (py::isinstance<py::str>(arg)) {
+    if (arg.cast<std::string>() != "model")
+      throw py::value_error(std::string(name) + ": '" +
+                            arg.cast<std::string>() +
+                            "' (must be 'model', None or a number in [0, 1])");
+    return from_model.value_or(0.0);
+  }
+  try {
+    return arg.cast<double>();
+  } catch (const py::cast_error&) {
+    throw py::type_error(std::string(name) +
+                         ": expected 'model', None or a number in [0, 1]");
+  }
+}
+
 py::array_t<double> SampleMuEpisodesPy(const Model& model,
                                        int n_envs,
                                        int n_steps,
                                        py::handle fn_n,
                                        py::handle v_mm_s,
                                        py::object rng,
-                                       py::object ar1) {
+                                       py::object ar1,
+                                       py::object offset_fraction,
+                                       std::optional<double> dt_s) {
   const MuSampler& s = model.sampler();
+  if (dt_s && !(*dt_s > 0 && std::isfinite(*dt_s)))
+    throw py::value_error("dt_s = " + std::to_string(*dt_s) +
+                          " (must be finite and > 0, or None)");
+  const auto time = model.eps_time();
+  // The model's phi is per sample of its data (time->dt_s); for a
+  // simulation step dt_s the same continuous-time correlation gives
+  // phi^(dt_s / data dt_s).
+  std::optional<double> phi_model, f_model;
+  if (time) {
+    phi_model = dt_s && time->dt_s > 0 ? std::pow(time->phi, *dt_s / time->dt_s)
+                                       : time->phi;
+    f_model = time->offset_fraction;
+  }
   EpisodeSampleOptions o;
   o.envs = n_envs;
   o.steps = n_steps;
-  if (ar1.is_none()) {
-    o.ar1 = 0.0;
-  } else if (py::isinstance<py::str>(ar1)) {
-    if (ar1.cast<std::string>() != "model")
-      throw py::value_error("ar1: '" + ar1.cast<std::string>() +
-                            "' (must be 'model', None or a number in [0, 1])");
-    o.ar1 = model.eps_ar1().value_or(0.0);
-  } else {
-    try {
-      o.ar1 = ar1.cast<double>();
-    } catch (const py::cast_error&) {
-      throw py::type_error("ar1: expected 'model', None or a number in [0, 1]");
-    }
-  }
+  o.ar1 = CorrelationArg(ar1, "ar1", phi_model);
+  o.offset_fraction =
+      CorrelationArg(offset_fraction, "offset_fraction", f_model);
   std::string why;
   if (!o.IsValid(&why)) throw py::value_error(why);
   const Broadcast bc = MakeBroadcast(
@@ -731,10 +766,13 @@ constexpr const char* kEpisodesDoc =
     R"(Domain randomisation: mu for n_envs parallel environments over n_steps.
 
 Returns an (n_envs, n_steps) array; row i is one episode of environment i.
-eps keeps the model's empirical distribution at every step; its correlation
-from step to step is an AR(1) process on the normal scores (a Gaussian
-copula): z_0 ~ N(0, 1), z_t = ar1 z_(t-1) + sqrt(1 - ar1^2) w_t,
-eps_t = Q_eps(Phi(z_t)). Implemented in C++ (SampleMuEpisodes).
+eps keeps the model's empirical distribution at every step; its time
+structure is a Gaussian copula (C++ SampleMuEpisodes): with f =
+offset_fraction and phi = ar1,
+    z_t = sqrt(f) A + sqrt(1 - f) w_t,   A ~ N(0, 1) once per episode,
+    w_t = phi w_(t-1) + sqrt(1 - phi^2) e_t,   w_0 ~ N(0, 1),
+    eps_t = Q_eps(Phi(z_t)),
+so the normal scores correlate as f + (1 - f) phi^k at lag k.
 
 Args:
     n_envs: number of environments N, > 0.
@@ -744,10 +782,17 @@ Args:
     v_mm_s: sliding speed [mm/s], broadcastable to (N, T).
     rng: numpy.random.Generator, BitGenerator, int seed or None (see
         sample_mu). The same seed gives the same array.
-    ar1: step-to-step correlation in [0, 1]: "model" (default) uses the
-        model's identified eps time correlation when its JSON has one, else
-        0; None or 0 draws every step independently; 1 holds one draw per
-        episode (per-episode randomisation).
+    ar1: step-to-step AR(1) coefficient in [0, 1]. "model" (default): the
+        model's identified eps time correlation (eps_time) when it has one,
+        converted to the step dt_s, else 0. None or 0: independent steps
+        (then the result equals sample_mu(..., size=(N, T)) with the same
+        seed); 1: w held for the whole episode.
+    offset_fraction: f in [0, 1]. "model" (default): the model's
+        per-episode offset share when it has one, else 0. 1 holds one draw
+        per episode (per-episode randomisation).
+    dt_s: simulation step [s], > 0. With "model" values the model's phi
+        (per sample of its data, eps_time["dt_s"]) becomes
+        phi ** (dt_s / eps_time["dt_s"]). None: one step per data sample.
 
 Returns:
     float64 array of shape (n_envs, n_steps).
@@ -792,6 +837,16 @@ PYBIND11_MODULE(_core, m) {
           "has_stochastic",
           [](const Model& s) { return s.set().stochastic.has_value(); })
       .def_property_readonly("eps_ar1", &Model::eps_ar1)
+      .def_property_readonly("eps_time",
+                             [](const Model& s) -> py::object {
+                               const auto t = s.eps_time();
+                               if (!t) return py::none();
+                               py::dict d;
+                               d["dt_s"] = t->dt_s;
+                               d["phi"] = t->phi;
+                               d["offset_fraction"] = t->offset_fraction;
+                               return d;
+                             })
       .def_property_readonly(
           "sigma_eps",
           [](const Model& s) { return s.stochastic().mu.sigma_eps; })
@@ -852,6 +907,8 @@ PYBIND11_MODULE(_core, m) {
            py::arg("v_mm_s"),
            py::arg("rng") = py::none(),
            py::arg("ar1") = py::str("model"),
+           py::arg("offset_fraction") = py::str("model"),
+           py::arg("dt_s") = py::none(),
            kEpisodesDoc)
       // Scalar references: the estimators' functions called once, for
       // tests that the vectorised calls equal them element-wise.

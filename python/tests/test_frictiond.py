@@ -311,7 +311,7 @@ def test_episodes_shape_seed_and_independent_case(model):
     np.testing.assert_array_equal(
         a, model.sample_mu(2.0, 30.0, rng=3, size=(64, 50)))
     # ar1="model": no identified correlation in this model -> independent.
-    if model.eps_ar1 is None:
+    if model.eps_time is None:
         np.testing.assert_array_equal(
             a, model.sample_mu_episodes(64, 50, 2.0, 30.0, rng=3))
 
@@ -342,6 +342,20 @@ def test_episodes_ar1_correlation_and_marginal(model):
     mean = model._predict_scalar(2.0, 30.0)[0]
     med = mean + model._eps_quantile_scalar(0.5)
     assert np.mean(a[:, -1] < med) == pytest.approx(0.5, abs=4 * np.sqrt(0.25 / 4000))
+
+
+def test_episode_offset(model):
+    # f = 1: one draw per episode, whatever ar1; f = 0.5, ar1 = 0: steps
+    # correlate ~0.5 at any lag (on the normal scores; a little less on mu).
+    a = model.sample_mu_episodes(50, 30, 2.0, 30.0, rng=2, ar1=0.3, offset_fraction=1.0)
+    assert np.all(a == a[:, :1])
+    b = model.sample_mu_episodes(4000, 20, 2.0, 30.0, rng=3, ar1=0.0, offset_fraction=0.5)
+    r = np.corrcoef(b[:, 0], b[:, 19])[0, 1]
+    assert 0.4 < r < 0.55, r
+    with pytest.raises(ValueError, match="offset_fraction = 2"):
+        model.sample_mu_episodes(8, 10, 2.0, 30.0, offset_fraction=2.0)
+    with pytest.raises(ValueError, match="dt_s"):
+        model.sample_mu_episodes(8, 10, 2.0, 30.0, dt_s=0.0)
 
 
 def test_calls_release_the_gil(model):

@@ -108,6 +108,10 @@ struct EpisodeSampleOptions {
   /// step, 1 = one draw per environment held for the whole episode, in
   /// between an AR(1) process with this coefficient (see SampleMuEpisodes).
   double ar1 = 0.0;
+  /// Share f of the normal scores' variance that stays constant within an
+  /// episode (a per-episode offset A ~ N(0, 1), drawn once per
+  /// environment), in [0, 1]: 0 = none, 1 = one draw per episode.
+  double offset_fraction = 0.0;
   /// True when usable; otherwise *why names the field, value and rule.
   bool IsValid(std::string* why) const;
 };
@@ -128,12 +132,16 @@ struct StridedInput {
 /// and step, written row-major to out[env * steps + step] (N*T doubles).
 ///
 /// eps keeps the model's empirical marginal distribution at every step; its
-/// time correlation is an AR(1) process on the normal scores (a Gaussian
-/// copula): z_0 ~ N(0, 1), z_t = ar1 z_{t-1} + sqrt(1 - ar1^2) w_t,
-/// eps_t = Q_eps(Phi(z_t)). With ar1 = 0 each eps_t = Q_eps(u_t) uses one
-/// uniform; otherwise each step uses one uniform through Phi^-1. The
-/// correlation of eps across steps is then ~ar1 (exactly ar1 for the normal
-/// scores; Spearman's rho of eps is (6/pi) asin(ar1/2)).
+/// time structure is a Gaussian copula (the process of issue 19's eps time
+/// model): with f = offset_fraction and phi = ar1,
+///   z_t = sqrt(f) A + sqrt(1 - f) w_t,  A ~ N(0, 1) once per episode,
+///   w_0 ~ N(0, 1),  w_t = phi w_{t-1} + sqrt(1 - phi^2) e_t,
+///   eps_t = Q_eps(Phi(z_t)),
+/// so corr(z_t, z_{t+k}) = f + (1 - f) phi^k. With phi = f = 0 each
+/// eps_t = Q_eps(u_t) uses one uniform (as MuSampler::Draw); otherwise each
+/// step uses one uniform through Phi^-1 (plus one per episode for A when
+/// f > 0). The correlation of eps itself is close to that of z (Spearman's
+/// rho of eps is (6/pi) asin(rho_z/2)).
 /// @throws std::invalid_argument for invalid options (nothing written).
 void SampleMuEpisodes(const MuSampler& sampler,
                       StridedInput fn_n,
