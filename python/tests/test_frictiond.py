@@ -369,7 +369,7 @@ def test_calls_release_the_gil(model):
 
     def work():
         window["start"] = time.perf_counter()
-        model.sample_mu_episodes(2000, 500, 2.0, 30.0, rng=1, ar1=0.5)
+        model.sample_mu_episodes(4000, 500, 2.0, 30.0, rng=1, ar1=0.5)
         window["end"] = time.perf_counter()
 
     ticks = []
