@@ -148,7 +148,17 @@ MuPoint MuSampler::CalcPrediction(double fn_n, double v_mm_s) const {
                      (has_v_range_ && (v_mm_s < v_min_ || v_mm_s > v_max_));
   out.mu = m.beta.dot(xv);
   double var_param = 0.0;
-  if (m.P_beta.rows() == n) {
+  if (m.P_beta.rows() == n && m.P_beta.cols() == n && n <= 3) {
+    // Up to 3 terms Eigen's matrix-vector product and dot add left to
+    // right (see CalcMean), so plain loops give the same bits, faster.
+    double quad = 0.0;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      double row = m.P_beta(i, 0) * x[0];
+      for (Eigen::Index j = 1; j < n; ++j) row += m.P_beta(i, j) * x[j];
+      quad = i == 0 ? x[0] * row : quad + x[i] * row;
+    }
+    var_param = std::max(0.0, quad);
+  } else if (m.P_beta.rows() == n) {
     Eigen::Map<Eigen::VectorXd, Eigen::AlignedMax> pxv(px, n);
     pxv.noalias() = m.P_beta * xv;
     var_param = std::max(0.0, xv.dot(pxv));

@@ -31,6 +31,8 @@ StochasticFrictionModel MakeModel(bool extended) {
   const int n = static_cast<int>(beta.size());
   Eigen::MatrixXd a = Eigen::MatrixXd::Identity(n, n) * 1e-4;
   a(0, 1) = a(1, 0) = 2e-5;
+  a(1, 2) = 3e-6;  // not symmetric: the evaluation must not assume it
+  a(2, 1) = -1e-6;
   r.P_beta = a;
   r.sigma_eps = 0.08;
   for (double p : EpsQuantileLevels()) {
