@@ -21,13 +21,14 @@ from typing import Any, Dict, List, Mapping, Optional, Union
 
 from ._core import Model, _Client
 from ._errors import DaemonError, NotFoundError, UnreachableError
-from ._types import GripForce, Prediction
+from ._types import GRIP_STATUS, GripForce, Prediction
 
 __all__ = [
     "Client",
     "Model",
     "Prediction",
     "GripForce",
+    "GRIP_STATUS",
     "DaemonError",
     "NotFoundError",
     "UnreachableError",

@@ -37,8 +37,11 @@ class Model:
         """mu at normal force fn_n [N] and sliding speed v_mm_s [mm/s]."""
     def slip_likelihood(self, fn_n: ArrayLike, ft_n: ArrayLike) -> npt.NDArray[np.float64]:
         """P(slip) in [0, 1] at normal force fn_n [N], tangential ft_n [N]."""
-    def grip_force(self, load_n: ArrayLike, risk: ArrayLike, hold_s: float = 0.0) -> GripForce:
-        """Smallest normal force [N] holding load_n [N] at slip risk `risk`."""
+    def grip_force(
+        self, load_n: ArrayLike, risk: ArrayLike, hold_s: ArrayLike = 0.0, v_mm_s: ArrayLike = 0.0
+    ) -> GripForce:
+        """Smallest normal force [N] holding load_n [N] for hold_s [s] at
+        v_mm_s [mm/s] with P(any slip) <= risk."""
     def sample_mu(
         self,
         fn_n: ArrayLike,
@@ -61,7 +64,9 @@ class Model:
         """(n_envs, n_steps) mu [-] for domain randomisation."""
     def _predict_scalar(self, fn_n: float, v_mm_s: float) -> Tuple[float, float, float, float, bool]: ...
     def _slip_likelihood_scalar(self, fn_n: float, ft_n: float) -> float: ...
-    def _grip_force_scalar(self, load_n: float, risk: float) -> Tuple[bool, float, float, bool, str]: ...
+    def _grip_force_scalar(
+        self, load_n: float, risk: float, hold_s: float = 0.0, v_mm_s: float = 0.0
+    ) -> Tuple[bool, float, float, bool, str, float, float, float, int]: ...
     def _eps_quantile_scalar(self, p: float) -> float: ...
 
 class _Client:

@@ -25,6 +25,7 @@
 
 #include "frictiond/client/client.h"
 #include "frictiond/client/mu_sampler.h"
+#include "frictiond/estimators/grip_force.h"
 #include "frictiond/estimators/stochastic_model.h"
 #include "frictiond/proto/model_json.h"
 
@@ -322,13 +323,18 @@ class Model {
 
   // The model's identified eps time structure, when it has one: the AR(1)
   // coefficient phi per sample of dt_s seconds and the per-episode offset
-  // share (eps_time.h of issue 19; not in this build's library yet).
+  // share (EpsTimeModel, eps_time.h).
   struct EpsTime {
     double dt_s = 0.0;
     double phi = 0.0;
     double offset_fraction = 0.0;
   };
-  std::optional<EpsTime> eps_time() const { return std::nullopt; }
+  std::optional<EpsTime> eps_time() const {
+    if (!set_.stochastic || !set_.stochastic->eps_time.valid)
+      return std::nullopt;
+    const EpsTimeModel& t = set_.stochastic->eps_time;
+    return EpsTime{t.dt_s, t.phi, t.offset_fraction};
+  }
   std::optional<double> eps_ar1() const {
     if (const auto t = eps_time()) return t->phi;
     return std::nullopt;
@@ -387,32 +393,45 @@ py::array_t<double> SlipLikelihood(const Model& model,
 py::object GripForces(const Model& model,
                       py::handle load_n,
                       py::handle risk,
-                      double hold_s) {
+                      py::handle hold_s,
+                      py::handle v_mm_s) {
   const StochasticFrictionModel& m = model.stochastic();
-  if (!(hold_s == 0))
-    throw py::value_error(
-        "hold_s = " + std::to_string(hold_s) +
-        " (only 0 is supported: this build's client library computes the "
-        "risk of slip at one instant, not of any slip during a hold)");
-  const Broadcast bc = MakeBroadcast(
-      {{"load_n", AsArray(load_n, "load_n")}, {"risk", AsArray(risk, "risk")}});
-  auto fn = NewArray<double>(bc.shape), mu = NewArray<double>(bc.shape);
+  const Broadcast bc = MakeBroadcast({{"load_n", AsArray(load_n, "load_n")},
+                                      {"risk", AsArray(risk, "risk")},
+                                      {"hold_s", AsArray(hold_s, "hold_s")},
+                                      {"v_mm_s", AsArray(v_mm_s, "v_mm_s")}});
+  auto fn = NewArray<double>(bc.shape), mu = NewArray<double>(bc.shape),
+       sd = NewArray<double>(bc.shape), instant = NewArray<double>(bc.shape),
+       min_risk = NewArray<double>(bc.shape);
   auto ok = NewArray<bool>(bc.shape), extra = NewArray<bool>(bc.shape);
+  auto status = NewArray<std::int8_t>(bc.shape);
   double* pf = fn.mutable_data();
   double* pm = mu.mutable_data();
+  double* psd = sd.mutable_data();
+  double* pi = instant.mutable_data();
+  double* pr = min_risk.mutable_data();
   bool* pok = ok.mutable_data();
   bool* pe = extra.mutable_data();
+  std::int8_t* ps = status.mutable_data();
   std::string error;
   {
     py::gil_scoped_release nogil;
     try {
-      ForEach<2>(bc, [&](py::ssize_t i, const double* x) {
+      ForEach<4>(bc, [&](py::ssize_t i, const double* x) {
         try {
-          const GripForce g = CalcGripForce(m, x[0], x[1]);
-          pf[i] = g.attainable ? g.fn_n : std::nan("");
-          pm[i] = g.attainable ? g.mu_used : std::nan("");
+          GripForceOptions o;
+          o.hold_s = x[2];
+          o.v_mm_s = x[3];
+          const GripForce g = CalcGripForce(m, x[0], x[1], o);
+          const double nan = std::nan("");
+          pf[i] = g.attainable ? g.fn_n : nan;
+          pm[i] = g.attainable ? g.mu_used : nan;
+          psd[i] = g.attainable ? g.fn_n_sd : nan;
+          pi[i] = g.attainable ? g.instant_risk : nan;
+          pr[i] = g.min_supported_risk;
           pok[i] = g.attainable;
           pe[i] = g.extrapolated;
+          ps[i] = static_cast<std::int8_t>(g.status);
         } catch (const std::invalid_argument& e) {
           throw std::invalid_argument(IndexText(bc, i) + e.what());
         }
@@ -423,7 +442,7 @@ py::object GripForces(const Model& model,
   }
   if (!error.empty()) throw py::value_error(error);
   return py::module_::import("frictiond._types")
-      .attr("GripForce")(fn, mu, ok, extra);
+      .attr("GripForce")(fn, mu, ok, extra, sd, instant, min_risk, status);
 }
 
 std::vector<py::ssize_t> SizeShape(const py::object& size) {
@@ -721,24 +740,32 @@ Returns:
 constexpr const char* kGripDoc =
     R"(Smallest normal force holding load_n with slip risk at most `risk`.
 
-Paper 000 section IV-A: solves Fn * (b0 + b2 Fn + q_eps(risk)) = load_n
-under the Fn-only model (C++ CalcGripForce, element by element).
+Paper 000 section IV-A, for a grasp held hold_s seconds at sliding speed
+v_mm_s (C++ CalcGripForce with GripForceOptions, element by element): the
+smallest Fn with P(slip at any time during the hold) <= risk under eq. (1)
+with eps's identified time correlation (docs/grip_force.md). hold_s = 0 is
+the risk at one instant.
 
 Args:
     load_n: tangential load to hold [N], finite and > 0.
-    risk: slip probability in (0, 1); broadcastable with load_n.
-    hold_s: duration of the hold [s]. Only 0 (the risk at one instant) is
-        supported by this build; any other value raises ValueError.
+    risk: slip probability in (0, 1).
+    hold_s: duration of the hold [s], in [0, 3600]; > 0 needs the model's
+        eps time model (model.eps_time), else status "no_time_model".
+    v_mm_s: sliding speed of the grasp [mm/s], >= 0 (0 = at rest).
+    All four broadcast together.
 
 Returns:
-    GripForce(fn_n, mu_used, attainable, extrapolated): arrays of the
-    broadcast shape. fn_n [N] and mu_used [-] are NaN where no normal force
-    holds the load at that risk (attainable False); extrapolated is True
-    where fn_n lies outside the fitted Fn range.
+    GripForce(fn_n, mu_used, attainable, extrapolated, fn_n_sd,
+    instant_risk, min_supported_risk, status): arrays of the broadcast
+    shape. fn_n [N], its sd fn_n_sd [N] (coefficient covariance), mu_used
+    [-] and instant_risk [-] are NaN where not attainable; status codes
+    index GRIP_STATUS ("ok", "unattainable", "unsupported_risk": risk below
+    min_supported_risk, the smallest the data support, "no_time_model");
+    extrapolated is True where fn_n or v_mm_s lies outside the fitted range.
 
 Raises:
-    ValueError: a load_n or risk out of range (naming the element), or
-        hold_s != 0.
+    ValueError: a load_n, risk, hold_s or v_mm_s out of range (naming the
+        element).
 )";
 
 constexpr const char* kSampleDoc =
@@ -891,6 +918,7 @@ PYBIND11_MODULE(_core, m) {
            py::arg("load_n"),
            py::arg("risk"),
            py::arg("hold_s") = 0.0,
+           py::arg("v_mm_s") = 0.0,
            kGripDoc)
       .def("sample_mu",
            &SampleMu,
@@ -922,12 +950,31 @@ PYBIND11_MODULE(_core, m) {
            [](const Model& s, double fn_n, double ft_n) {
              return CalcSlipLikelihood(s.stochastic(), fn_n, ft_n);
            })
-      .def("_grip_force_scalar",
-           [](const Model& s, double load_n, double risk) {
-             const GripForce g = CalcGripForce(s.stochastic(), load_n, risk);
-             return py::make_tuple(
-                 g.attainable, g.fn_n, g.mu_used, g.extrapolated, g.why);
-           })
+      .def(
+          "_grip_force_scalar",
+          [](const Model& s,
+             double load_n,
+             double risk,
+             double hold_s,
+             double v_mm_s) {
+            GripForceOptions o;
+            o.hold_s = hold_s;
+            o.v_mm_s = v_mm_s;
+            const GripForce g = CalcGripForce(s.stochastic(), load_n, risk, o);
+            return py::make_tuple(g.attainable,
+                                  g.fn_n,
+                                  g.mu_used,
+                                  g.extrapolated,
+                                  g.why,
+                                  g.fn_n_sd,
+                                  g.instant_risk,
+                                  g.min_supported_risk,
+                                  static_cast<int>(g.status));
+          },
+          py::arg("load_n"),
+          py::arg("risk"),
+          py::arg("hold_s") = 0.0,
+          py::arg("v_mm_s") = 0.0)
       .def("_eps_quantile_scalar", [](const Model& s, double p) {
         return CalcEpsQuantile(s.stochastic().mu, p);
       });

@@ -227,25 +227,50 @@ def test_grip_force_equals_scalar(model):
     load = np.array([[0.5], [1.0], [3.0], [8.0]])
     risk = np.array([0.001, 0.01, 0.05, 0.3, 0.6])
     g = model.grip_force(load, risk)
-    assert g.fn_n.shape == (4, 5)
+    assert g.fn_n.shape == (4, 5) and g.status.shape == (4, 5)
     for i in range(4):
         for j in range(5):
-            ok, fn, mu, extra, why = model._grip_force_scalar(load[i, 0], risk[j])
-            assert g.attainable[i, j] == ok
-            if ok:
-                assert g.fn_n[i, j] == fn and g.mu_used[i, j] == mu
-            else:
-                assert np.isnan(g.fn_n[i, j]) and why
-            assert g.extrapolated[i, j] == extra
+            check_grip(model, g, (i, j), load[i, 0], risk[j], 0.0, 0.0)
 
 
-def test_grip_force_rejects_bad_elements_and_holds(model):
+def check_grip(model, g, idx, load, risk, hold, v):
+    ok, fn, mu, extra, why, sd, inst, min_risk, status = model._grip_force_scalar(
+        load, risk, hold, v)
+    assert g.attainable[idx] == ok, idx
+    assert g.status[idx] == status, idx
+    assert (frictiond.GRIP_STATUS[status] == "ok") == ok
+    if ok:
+        assert (g.fn_n[idx], g.mu_used[idx], g.fn_n_sd[idx], g.instant_risk[idx]) == (
+            fn, mu, sd, inst), idx
+    else:
+        assert np.isnan(g.fn_n[idx]) and why, idx
+    assert g.extrapolated[idx] == extra and g.min_supported_risk[idx] == min_risk, idx
+
+
+def test_grip_force_for_a_hold_equals_scalar(model):
+    assert model.eps_time is not None, "the simulated strokes identify eps's time model"
+    load = np.array([1.0, 2.0])[:, None, None]
+    risk = np.array([0.01, 0.05, 0.2])[None, :, None]
+    hold = np.array([0.0, 0.5, 3.0])
+    g = model.grip_force(load, risk, hold_s=hold, v_mm_s=10.0)
+    assert g.fn_n.shape == (2, 3, 3)
+    lb, rb, hb = np.broadcast_arrays(load, risk, hold)
+    for idx in np.ndindex(g.fn_n.shape):
+        check_grip(model, g, idx, lb[idx], rb[idx], hb[idx], 10.0)
+    # Holding longer needs at least as much force at the same risk.
+    ok = g.attainable[..., 1] & g.attainable[..., 2]
+    assert np.all(g.fn_n[..., 2][ok] >= g.fn_n[..., 1][ok])
+
+
+def test_grip_force_rejects_bad_elements(model):
     with pytest.raises(ValueError, match=r"at index \(2,\): load_n = -1"):
         model.grip_force([1.0, 2.0, -1.0], 0.01)
     with pytest.raises(ValueError, match="risk = 1.5"):
         model.grip_force(1.0, 1.5)
     with pytest.raises(ValueError, match="hold_s"):
-        model.grip_force(1.0, 0.01, hold_s=2.0)
+        model.grip_force(1.0, 0.01, hold_s=[1.0, -2.0])
+    with pytest.raises(ValueError, match="v_mm_s"):
+        model.grip_force(1.0, 0.01, v_mm_s=-1.0)
 
 
 def test_shapes_that_do_not_broadcast(model):
@@ -310,10 +335,21 @@ def test_episodes_shape_seed_and_independent_case(model):
     # Independent steps are sample_mu on an (N, T) grid with the same stream.
     np.testing.assert_array_equal(
         a, model.sample_mu(2.0, 30.0, rng=3, size=(64, 50)))
-    # ar1="model": no identified correlation in this model -> independent.
-    if model.eps_time is None:
-        np.testing.assert_array_equal(
-            a, model.sample_mu_episodes(64, 50, 2.0, 30.0, rng=3))
+    # "model": the identified eps time model's phi and offset share (phi per
+    # data sample, or converted to the step dt_s).
+    t = model.eps_time
+    assert t is not None and t["dt_s"] > 0
+    assert 0 <= t["phi"] <= 1 and 0 <= t["offset_fraction"] <= 1
+    assert model.eps_ar1 == t["phi"]
+    np.testing.assert_array_equal(
+        model.sample_mu_episodes(64, 50, 2.0, 30.0, rng=3),
+        model.sample_mu_episodes(64, 50, 2.0, 30.0, rng=3, ar1=t["phi"],
+                                 offset_fraction=t["offset_fraction"]))
+    np.testing.assert_array_equal(
+        model.sample_mu_episodes(64, 50, 2.0, 30.0, rng=3, dt_s=0.05),
+        model.sample_mu_episodes(64, 50, 2.0, 30.0, rng=3,
+                                 ar1=t["phi"] ** (0.05 / t["dt_s"]),
+                                 offset_fraction=t["offset_fraction"]))
 
 
 def test_episodes_per_environment_inputs(model):
