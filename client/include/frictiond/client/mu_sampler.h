@@ -132,8 +132,8 @@ struct StridedInput {
 /// and step, written row-major to out[env * steps + step] (N*T doubles).
 ///
 /// eps keeps the model's empirical marginal distribution at every step; its
-/// time structure is a Gaussian copula (the process of issue 19's eps time
-/// model): with f = offset_fraction and phi = ar1,
+/// time structure is a Gaussian copula, the process of EpsTimeModel
+/// (eps_time.h): with f = offset_fraction and phi = ar1,
 ///   z_t = sqrt(f) A + sqrt(1 - f) w_t,  A ~ N(0, 1) once per episode,
 ///   w_0 ~ N(0, 1),  w_t = phi w_{t-1} + sqrt(1 - phi^2) e_t,
 ///   eps_t = Q_eps(Phi(z_t)),
