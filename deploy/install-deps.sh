@@ -16,6 +16,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libtinyxml2-dev      # XML parser that checks the MJCF/SDF/URDF exports
   python3-numpy python3-scipy
+  python3-dev pybind11-dev python3-pytest   # the Python module (python/, FRICTIOND_WITH_PYTHON) and its tests
   gimp-data            # real texture images for the recognition tests
   iproute2 util-linux  # private network namespace for LCM multicast tests
   postgresql          # throw-away PostgreSQL 15 servers for the fleet tests
