@@ -9,10 +9,12 @@
 // StoreUnavailable; the next call reconnects.
 #ifdef FRICTIOND_HAVE_POSTGRES
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstring>
+#include <limits>
 #include <mutex>
 #include <random>
 #include <stdexcept>
@@ -546,6 +548,26 @@ class PgStore final : public Store {
       if (open_only) sql += std::string(" WHERE state IN ") + kOpenStates;
       sql += " ORDER BY id DESC";
       const Result r = Exec(c, sql);
+      std::vector<IdentificationJob> out;
+      for (int i = 0; i < r.Rows(); ++i) out.push_back(ReadJob(r, i));
+      return out;
+    });
+  }
+
+  std::vector<IdentificationJob> ListJobsPage(bool open_only,
+                                              std::int64_t after,
+                                              int limit) override {
+    return Read([&](PGconn* c) {
+      std::string sql =
+          std::string("SELECT ") + kJobColumns + " FROM jobs WHERE id < $1";
+      if (open_only) sql += std::string(" AND state IN ") + kOpenStates;
+      sql += " ORDER BY id DESC LIMIT $2";
+      const Result r = Exec(
+          c,
+          sql,
+          Params()
+              .Int(after > 0 ? after : std::numeric_limits<std::int64_t>::max())
+              .Int(std::max(limit, 1)));
       std::vector<IdentificationJob> out;
       for (int i = 0; i < r.Rows(); ++i) out.push_back(ReadJob(r, i));
       return out;

@@ -1,8 +1,10 @@
 // SQLite back end of Store: WAL journal, synchronous=FULL (acknowledged
 // writes survive kill -9 and power loss), schema migrations recorded in
 // schema_version, prepared statements only (values are always bound).
+#include <algorithm>
 #include <chrono>
 #include <ctime>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <stdexcept>
@@ -581,6 +583,25 @@ class SqliteStore final : public Store {
     auto& s = Stmt(sql).Reset();
     std::vector<IdentificationJob> out;
     while (s.Step()) out.push_back(ReadJob(s));
+    return out;
+  }
+
+  std::vector<IdentificationJob> ListJobsPage(bool open_only,
+                                              std::int64_t after,
+                                              int limit) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    std::string sql =
+        "SELECT "
+        "id,material,fingertip,state,plan_json,detail,requested_by,created_at,"
+        "updated_at FROM jobs WHERE id < ?";
+    if (open_only) sql += std::string(" AND state IN ") + kOpenStates;
+    sql += " ORDER BY id DESC LIMIT ?";
+    auto& s = Stmt(sql).Reset().Bind(
+        after > 0 ? after : std::numeric_limits<std::int64_t>::max());
+    s.Bind(static_cast<std::int64_t>(std::max(limit, 1)));
+    std::vector<IdentificationJob> out;
+    while (s.Step()) out.push_back(ReadJob(s));
+    s.Reset();
     return out;
   }
 

@@ -186,6 +186,19 @@ class Store {
   virtual std::optional<IdentificationJob> GetJob(std::int64_t id) = 0;
   /// Jobs, newest first; `open_only` keeps requested/stroking/enough_coverage.
   virtual std::vector<IdentificationJob> ListJobs(bool open_only) = 0;
+  /// One page of ListJobs: jobs with id below `after` (0: from the newest),
+  /// newest first, at most `limit` (>= 1). The default filters ListJobs;
+  /// the back ends override it with a bounded query.
+  virtual std::vector<IdentificationJob> ListJobsPage(bool open_only,
+                                                      std::int64_t after,
+                                                      int limit) {
+    std::vector<IdentificationJob> out;
+    for (IdentificationJob& j : ListJobs(open_only)) {
+      if (static_cast<int>(out.size()) >= limit) break;
+      if (after <= 0 || j.id < after) out.push_back(std::move(j));
+    }
+    return out;
+  }
   /// Seconds after which a claim that was not renewed may be taken over.
   static constexpr int kClaimLeaseS = 60;
   /// Claims an open job for `worker` so that only one daemon of a fleet acts
