@@ -6,6 +6,7 @@
 
 #include <CLI/CLI.hpp>
 #include <signal.h>
+#include <sys/stat.h>
 
 #include "frictiond/server/daemon.h"
 
@@ -61,7 +62,26 @@ int main(int argc, char** argv) {
                  bootstrap_token,
                  "secret of the operator token created on the first start "
                  "(env FRICTIOND_BOOTSTRAP_TOKEN) [random, printed once]");
+  std::string bootstrap_token_file;
+  app.add_option("--bootstrap-token-file",
+                 bootstrap_token_file,
+                 "file whose first line is the bootstrap secret (keeps it off "
+                 "the command line)");
+  int header_timeout_ms = -1, request_timeout_ms = -1, max_connections = -1;
+  app.add_option("--header-timeout-ms",
+                 header_timeout_ms,
+                 "HTTP: request line and headers must arrive within this "
+                 "time of the request's first byte [10000]");
+  app.add_option("--request-timeout-ms",
+                 request_timeout_ms,
+                 "HTTP: a whole request (headers and body) must arrive "
+                 "within this time [60000]");
+  app.add_option("--max-connections",
+                 max_connections,
+                 "HTTP: open connections at most; more get 503 [512]");
   CLI11_PARSE(app, argc, argv);
+  // Files the daemon creates (database, WAL, exports) are private.
+  ::umask(077);
 
   // Block the stop signals in every thread; one thread waits for them.
   sigset_t stop_signals;
@@ -84,11 +104,22 @@ int main(int argc, char** argv) {
     if (lcm_allow_unsigned) config.lcm_allow_unsigned = true;
     if (lcm_max_skew_s >= 0) config.lcm_max_skew_s = lcm_max_skew_s;
     if (!open_reads.empty()) config.open_reads = open_reads == "true";
-    if (bootstrap_token.empty()) {
+    if (!bootstrap_token.empty()) {
+      std::cerr << "frictiond: note: --bootstrap-token is visible to other "
+                   "users of this host (ps); prefer --bootstrap-token-file "
+                   "or FRICTIOND_BOOTSTRAP_TOKEN\n";
+    } else if (bootstrap_token_file.empty()) {
       if (const char* env = std::getenv("FRICTIOND_BOOTSTRAP_TOKEN"))
         bootstrap_token = env;
     }
+    // Not inherited by anything the daemon may start.
+    ::unsetenv("FRICTIOND_BOOTSTRAP_TOKEN");
     if (!bootstrap_token.empty()) config.bootstrap_token = bootstrap_token;
+    if (!bootstrap_token_file.empty())
+      config.bootstrap_token_file = bootstrap_token_file;
+    if (header_timeout_ms >= 0) config.header_timeout_ms = header_timeout_ms;
+    if (request_timeout_ms >= 0) config.request_timeout_ms = request_timeout_ms;
+    if (max_connections >= 0) config.max_connections = max_connections;
     frictiond::Daemon daemon(config);
     const int bound = daemon.Start();
     std::thread waiter([&daemon, stop_signals] {
@@ -98,7 +129,7 @@ int main(int argc, char** argv) {
       daemon.Stop();
     });
     std::cerr << "frictiond: serving http://" << config.bind << ":" << bound
-              << " (db " << config.db << ")\n";
+              << " (db " << frictiond::RedactDbUrl(config.db) << ")\n";
     daemon.Serve();
     // Serve returned: either a signal arrived or the server failed. Wake the
     // waiter if it is still waiting.

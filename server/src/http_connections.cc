@@ -179,6 +179,12 @@ GuardedServer::~GuardedServer() { StopWorkers(); }
 void GuardedServer::StartWorkers() {
   if (gate_.joinable()) return;
   stopping_ = false;
+  // httplib listens with a backlog of 5: a burst of connections would wait
+  // for SYN retransmissions (1 s, 3 s, ...) before the gate even sees them.
+  // Re-listening on the bound socket raises the kernel's accept queue; the
+  // gate bounds what is accepted (max_connections).
+  if (svr_sock_ != INVALID_SOCKET)
+    ::listen(svr_sock_, std::max(limits_.max_queue, 128));
   wake_fd_ = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
   gate_ = std::thread([this] { GateLoop(); });
   for (int i = 0; i < limits_.threads; ++i)
