@@ -16,6 +16,24 @@
 
 namespace frictiond {
 
+namespace {
+// A locked, read-only, full or failing database file is an outage of the
+// store (StoreUnavailable: HTTP 503, nothing stored), not a bug (500).
+[[noreturn]] void ThrowSqliteError(int rc, const std::string& why) {
+  switch (rc & 0xff) {
+    case SQLITE_BUSY:
+    case SQLITE_LOCKED:
+    case SQLITE_READONLY:
+    case SQLITE_IOERR:
+    case SQLITE_FULL:
+    case SQLITE_CANTOPEN:
+      throw StoreUnavailable("sqlite: " + why);
+    default:
+      throw std::runtime_error("sqlite: " + why);
+  }
+}
+}  // namespace
+
 std::string NowIso8601() {
   using namespace std::chrono;
   const auto now = system_clock::now();
@@ -141,7 +159,7 @@ class Statement {
     const int rc = sqlite3_step(stmt_);
     if (rc == SQLITE_ROW) return true;
     if (rc == SQLITE_DONE) return false;
-    throw std::runtime_error(std::string("sqlite: ") + sqlite3_errmsg(db_));
+    ThrowSqliteError(rc, sqlite3_errmsg(db_));
   }
   void Run() {
     while (Step()) {
@@ -831,10 +849,11 @@ class SqliteStore final : public Store {
 
   void Exec(const std::string& sql) {
     char* err = nullptr;
-    if (sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &err) != SQLITE_OK) {
+    const int rc = sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &err);
+    if (rc != SQLITE_OK) {
       std::string why = err ? err : "unknown error";
       sqlite3_free(err);
-      throw std::runtime_error("sqlite: " + why);
+      ThrowSqliteError(rc, why);
     }
   }
 
