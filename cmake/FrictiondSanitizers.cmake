@@ -23,3 +23,21 @@ if(FRICTIOND_SANITIZE)
   add_compile_options(-fsanitize=${_flag} -fno-omit-frame-pointer -fno-sanitize-recover=undefined)
   add_link_options(-fsanitize=${_flag})
 endif()
+
+# FRICTIOND_BUILD_FUZZERS: libFuzzer harnesses (frictiond_add_fuzzer,
+# deploy/fuzz.sh). Needs clang (CC=clang CXX=clang++); every target is built
+# with coverage instrumentation plus ASan and UBSan, so configure it in its
+# own build directory (build-fuzz).
+if(FRICTIOND_BUILD_FUZZERS)
+  if(NOT CMAKE_CXX_COMPILER_ID MATCHES "Clang")
+    message(FATAL_ERROR "FRICTIOND_BUILD_FUZZERS needs clang (configure with CC=clang CXX=clang++), not ${CMAKE_CXX_COMPILER_ID}")
+  endif()
+  if(FRICTIOND_SANITIZE)
+    message(FATAL_ERROR "FRICTIOND_BUILD_FUZZERS brings its own sanitizers (address, undefined); leave FRICTIOND_SANITIZE empty")
+  endif()
+  add_compile_options(-fsanitize=fuzzer-no-link,address,undefined -fno-omit-frame-pointer
+    -fno-sanitize-recover=undefined)
+  add_link_options(-fsanitize=address,undefined)
+  add_custom_target(frictiond_fuzzers)
+  file(WRITE ${CMAKE_BINARY_DIR}/fuzzers.txt "")
+endif()

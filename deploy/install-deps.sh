@@ -6,6 +6,7 @@ set -euo pipefail
 packages=(
   # toolchain
   build-essential cmake pkg-config git clang-format
+  clang-14 clang libclang-rt-14-dev   # libFuzzer + ASan/UBSan runtimes (deploy/fuzz.sh)
   # libraries (see README "Dependencies" for why each is here)
   libeigen3-dev libsqlite3-dev sqlite3 libpq-dev libcpp-httplib-dev nlohmann-json3-dev libcli11-dev
   liblcm-dev liblcm-bin libglib2.0-dev

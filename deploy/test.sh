@@ -3,7 +3,9 @@
 # formatting, runs the whole test suite (inside a private network namespace
 # with multicast on loopback, so the LCM tests run and no packet leaves the
 # machine), then runs the unit tests again under ASan+UBSan.
-# FRICTIOND_SKIP_SANITIZERS=1 skips the sanitizer stage.
+# FRICTIOND_SKIP_SANITIZERS=1 skips the sanitizer stage. Last, the libFuzzer
+# harnesses run for a bounded time each (deploy/fuzz.sh, docs/fuzzing.md);
+# FRICTIOND_SKIP_FUZZ=1 skips them.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)
@@ -38,5 +40,8 @@ if [ "${FRICTIOND_SKIP_SANITIZERS:-0}" != 1 ]; then
     -DFRICTIOND_BUILD_BENCHMARKS=OFF >/dev/null
   ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
     ctest --test-dir "$root/build-asan" --output-on-failure -j2 --timeout 900 -E 'lcm' -LE 'install|browser'
+fi
+if [ "${FRICTIOND_SKIP_FUZZ:-0}" != 1 ]; then
+  ./deploy/fuzz.sh
 fi
 echo "== all tests passed"

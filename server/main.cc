@@ -41,6 +41,7 @@ int main(int argc, char** argv) {
   app.add_option("--threads", threads, "HTTP worker threads [8]");
   std::string lcm_keys;
   bool lcm_allow_unsigned = false;
+  bool lcm_send_unsigned = false;
   double lcm_max_skew_s = -1;
   app.add_option("--lcm-keys",
                  lcm_keys,
@@ -49,6 +50,11 @@ int main(int argc, char** argv) {
   app.add_flag("--lcm-allow-unsigned",
                lcm_allow_unsigned,
                "accept unsigned stroke_chunk_v1 on LCM (off: dropped)");
+  app.add_flag("--lcm-send-unsigned",
+               lcm_send_unsigned,
+               "also send unsigned replies, requests, progress and model "
+               "updates on LCM (forgeable by any device on the group; off: "
+               "signed only, docs/security_lcm.md)");
   app.add_option("--lcm-max-skew-s",
                  lcm_max_skew_s,
                  "timestamp window of signed LCM writes in s [30]");
@@ -102,6 +108,7 @@ int main(int argc, char** argv) {
     if (threads >= 0) config.threads = threads;
     if (!lcm_keys.empty()) config.lcm_keys_file = lcm_keys;
     if (lcm_allow_unsigned) config.lcm_allow_unsigned = true;
+    if (lcm_send_unsigned) config.lcm_send_unsigned = true;
     if (lcm_max_skew_s >= 0) config.lcm_max_skew_s = lcm_max_skew_s;
     if (!open_reads.empty()) config.open_reads = open_reads == "true";
     if (!bootstrap_token.empty()) {

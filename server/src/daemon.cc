@@ -125,6 +125,7 @@ void DaemonConfig::LoadFile(const std::string& path) {
                                   "lcm_keys_file",
                                   "lcm_allow_unsigned",
                                   "lcm_max_skew_s",
+                                  "lcm_send_unsigned",
                                   "bootstrap_token_file",
                                   "header_timeout_ms",
                                   "request_timeout_ms",
@@ -158,6 +159,12 @@ void DaemonConfig::LoadFile(const std::string& path) {
       throw std::invalid_argument(
           path + ": lcm_allow_unsigned: expected true or false");
     lcm_allow_unsigned = j["lcm_allow_unsigned"].get<bool>();
+  }
+  if (j.contains("lcm_send_unsigned")) {
+    if (!j["lcm_send_unsigned"].is_boolean())
+      throw std::invalid_argument(
+          path + ": lcm_send_unsigned: expected true or false");
+    lcm_send_unsigned = j["lcm_send_unsigned"].get<bool>();
   }
   if (j.contains("lcm_max_skew_s")) {
     if (!j["lcm_max_skew_s"].is_number())
@@ -381,6 +388,7 @@ int Daemon::Start() {
     lo_lcm.security.keys = config_.LoadLcmKeys();
     lo_lcm.security.allow_unsigned = config_.lcm_allow_unsigned;
     lo_lcm.security.max_skew_s = config_.lcm_max_skew_s;
+    lo_lcm.security.send_unsigned = config_.lcm_send_unsigned;
     lo_lcm.metrics = &http_->metrics();
     if (lo_lcm.security.keys.empty() && !lo_lcm.security.allow_unsigned)
       std::cerr << "frictiond: LCM: no lcm_keys and lcm_allow_unsigned off: "

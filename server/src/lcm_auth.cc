@@ -30,6 +30,16 @@ const char* LcmDropReasonName(LcmDropReason r) {
       return "replayed";
     case LcmDropReason::kUnsigned:
       return "unsigned";
+    case LcmDropReason::kMalformed:
+      return "malformed";
+    case LcmDropReason::kTruncated:
+      return "truncated";
+    case LcmDropReason::kWrongHash:
+      return "wrong_hash";
+    case LcmDropReason::kOversized:
+      return "oversized";
+    case LcmDropReason::kInternal:
+      return "internal";
   }
   return "unknown";
 }

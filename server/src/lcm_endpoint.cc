@@ -17,6 +17,8 @@
 #include <random>
 #include <set>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include <lcm/lcm-cpp.hpp>
 #include <unistd.h>
@@ -33,6 +35,8 @@
 #include "frictiond/material_reply_v1.hpp"
 #include "frictiond/model_update_v1.hpp"
 #include "frictiond/proto/lcm_channels.h"
+#include "frictiond/proto/lcm_codec.h"
+#include "frictiond/proto/lcm_signed.h"
 #include "frictiond/proto/lugre_json.h"
 #include "frictiond/stroke_chunk_v1.hpp"
 #include "frictiond/stroke_chunk_v2.hpp"
@@ -141,6 +145,22 @@ class LcmPublisher {
     std::lock_guard<std::mutex> lock(mu_);
     lcm_ = nullptr;
   }
+  /// A message to robots: signed (signed_message_v1 on "<channel>_SIGNED")
+  /// once per key of `keys` (key id, key), and unsigned on `channel` only
+  /// when `send_unsigned`.
+  template <class Message>
+  void PublishToRobots(
+      const char* channel,
+      const Message& message,
+      const std::vector<std::pair<std::string, std::string>>& keys,
+      bool send_unsigned) {
+    if (send_unsigned) Publish(channel, message);
+    if (keys.empty()) return;
+    const std::string bytes = EncodeLcm(message);
+    const std::string signed_channel = LcmSignedChannel(channel);
+    for (const auto& [id, key] : keys)
+      Publish(signed_channel.c_str(), SignLcmPayload(bytes, channel, id, key));
+  }
 
  private:
   std::mutex mu_;
@@ -163,7 +183,10 @@ class LcmEndpointImpl {
         options_(std::move(options)),
         lcm_(options_.url),
         reassembler_(options_.reassembly),
-        auth_(options_.security) {
+        auth_(WithoutFleetKey(options_.security)) {
+    if (auto it = options_.security.keys.find(kLcmFleetKeyId);
+        it != options_.security.keys.end())
+      fleet_key_ = it->second;
     if (!lcm_.good())
       throw std::runtime_error(
           "--lcm " + options_.url +
@@ -172,21 +195,29 @@ class LcmEndpointImpl {
     if (options_.max_strokes_per_job < 1)
       throw std::invalid_argument("max_strokes_per_job must be >= 1");
     publisher_ = std::make_shared<LcmPublisher>(&lcm_);
-    lcm_.subscribe(kLcmQueryChannel, &LcmEndpointImpl::OnQuery, this);
-    lcm_.subscribe(kLcmStrokeChannel, &LcmEndpointImpl::OnChunk, this);
+    lcm_.subscribe(kLcmQueryChannel, &LcmEndpointImpl::OnQueryBytes, this);
+    lcm_.subscribe(kLcmStrokeChannel, &LcmEndpointImpl::OnChunkBytes, this);
     lcm_.subscribe(
-        kLcmSignedStrokeChannel, &LcmEndpointImpl::OnSignedChunk, this);
+        kLcmSignedStrokeChannel, &LcmEndpointImpl::OnSignedChunkBytes, this);
     // The drop counters exist (at 0) from the start.
     for (LcmDropReason r : {LcmDropReason::kForged,
                             LcmDropReason::kReplayed,
                             LcmDropReason::kStale,
                             LcmDropReason::kUnknownRobot,
-                            LcmDropReason::kUnsigned})
+                            LcmDropReason::kUnsigned,
+                            LcmDropReason::kMalformed,
+                            LcmDropReason::kTruncated,
+                            LcmDropReason::kWrongHash,
+                            LcmDropReason::kOversized,
+                            LcmDropReason::kInternal})
       Count(DropCounter(r), 0);
     Count("lcm_signed_accepted_total", 0);
     // Tell the fleet about every new model version, from any endpoint.
     std::weak_ptr<LcmPublisher> weak = publisher_;
-    library_.AddModelListener([weak](const CachedModel& m) {
+    library_.AddModelListener([weak,
+                               keys = BroadcastKeys(),
+                               send_unsigned = options_.security.send_unsigned](
+                                  const CachedModel& m) {
       auto p = weak.lock();
       if (!p) return;
       model_update_v1 u;
@@ -199,7 +230,7 @@ class LcmEndpointImpl {
               ? doc["reason"].get<std::string>()
               : std::string();
       u.model = ToLcm(m);
-      p->Publish(kLcmModelUpdateChannel, u);
+      p->PublishToRobots(kLcmModelUpdateChannel, u, keys, send_unsigned);
     });
   }
 
@@ -217,6 +248,26 @@ class LcmEndpointImpl {
   void Stop() {
     stop_ = true;
     if (thread_.joinable()) thread_.join();
+  }
+
+  void HandleMessage(const std::string& channel,
+                     const void* data,
+                     std::size_t size) {
+    lcm::ReceiveBuffer rbuf{};
+    rbuf.data = const_cast<void*>(data);
+    rbuf.data_size =
+        static_cast<std::uint32_t>(std::min<std::size_t>(size, UINT32_MAX));
+    if (channel == kLcmQueryChannel) OnQueryBytes(&rbuf, channel);
+    if (channel == kLcmStrokeChannel) OnChunkBytes(&rbuf, channel);
+    if (channel == kLcmSignedStrokeChannel) OnSignedChunkBytes(&rbuf, channel);
+    try {
+      for (const ReassemblyEvent& e : reassembler_.Poll(NowMonotonicS()))
+        OnReassemblyEvent(e);
+      while (lcm_.handleTimeout(0) > 0) {
+      }
+    } catch (const std::exception& e) {
+      std::cerr << "frictiond: lcm endpoint: " << e.what() << "\n";
+    }
   }
 
  private:
@@ -244,6 +295,39 @@ class LcmEndpointImpl {
     }
   }
 
+  using SigningKeys = std::vector<std::pair<std::string, std::string>>;
+  // The security options without the fleet key (the keys entry "fleet"
+  // signs messages to robots; it never authenticates a robot's write).
+  static LcmSecurityOptions WithoutFleetKey(LcmSecurityOptions s) {
+    s.keys.erase(kLcmFleetKeyId);
+    return s;
+  }
+  // Keys of a message every robot may read (model updates): each robot's
+  // key (at most kMaxBroadcastKeys) and the fleet key.
+  SigningKeys BroadcastKeys() const {
+    constexpr std::size_t kMaxBroadcastKeys = 64;
+    SigningKeys keys;
+    for (const auto& [robot, key] : auth_.options().keys) {
+      if (keys.size() >= kMaxBroadcastKeys) break;
+      keys.emplace_back(robot, key);
+    }
+    if (!fleet_key_.empty()) keys.emplace_back(kLcmFleetKeyId, fleet_key_);
+    return keys;
+  }
+  // Keys of a message to `robot`: its own key when it has one, else as a
+  // broadcast.
+  SigningKeys KeysFor(const std::string& robot) const {
+    if (const std::string* key = auth_.KeyOf(robot)) return {{robot, *key}};
+    return BroadcastKeys();
+  }
+  template <class Message>
+  void PublishToRobot(const char* channel,
+                      const Message& m,
+                      const std::string& robot) {
+    publisher_->PublishToRobots(
+        channel, m, KeysFor(robot), options_.security.send_unsigned);
+  }
+
   void PublishError(const std::string& type,
                     const std::string& request_id,
                     const std::string& robot,
@@ -266,21 +350,135 @@ class LcmEndpointImpl {
   }
 
   // --- queries --------------------------------------------------------------
-  void OnQuery(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+  // liblcm's callbacks: no exception may cross into liblcm (its C frames
+  // cannot unwind, and an exception there left it in a state that aborted
+  // the daemon on the next message). Every failure is counted as
+  // reason="internal" and answered; the endpoint keeps serving.
+  template <class Handler>
+  void Guarded(const char* type,
+               const lcm::ReceiveBuffer* rbuf,
+               Handler handler) noexcept {
+    try {
+      try {
+        handler(static_cast<const std::uint8_t*>(rbuf->data),
+                static_cast<std::size_t>(rbuf->data_size));
+      } catch (const std::exception& e) {
+        Count(DropCounter(LcmDropReason::kInternal));
+        std::cerr << "frictiond: lcm " << type << ": " << e.what() << "\n";
+        PublishError(type,
+                     "",
+                     "",
+                     0,
+                     0,
+                     -1,
+                     "(daemon)",
+                     std::string(type) +
+                         " not handled (internal error, nothing stored; send "
+                         "it again later): " +
+                         e.what());
+      } catch (...) {
+        Count(DropCounter(LcmDropReason::kInternal));
+        PublishError(type,
+                     "",
+                     "",
+                     0,
+                     0,
+                     -1,
+                     "(daemon)",
+                     std::string(type) + " not handled (internal error)");
+      }
+    } catch (...) {
+      // Even the error report failed (e.g. out of memory): nothing more to do.
+    }
+  }
+  void OnQueryBytes(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    Guarded("material_query_v1",
+            rbuf,
+            [this](const std::uint8_t* data, std::size_t size) {
+              HandleQueryBytes(data, size);
+            });
+  }
+  void OnChunkBytes(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    Guarded("stroke_chunk_v1",
+            rbuf,
+            [this](const std::uint8_t* data, std::size_t size) {
+              HandleChunkBytes(data, size);
+            });
+  }
+  void OnSignedChunkBytes(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    Guarded("stroke_chunk_v2",
+            rbuf,
+            [this](const std::uint8_t* data, std::size_t size) {
+              HandleSignedChunkBytes(data, size);
+            });
+  }
+
+  static LcmDropReason DropReasonOf(LcmDecodeFailure f) {
+    switch (f) {
+      case LcmDecodeFailure::kTruncated:
+        return LcmDropReason::kTruncated;
+      case LcmDecodeFailure::kWrongHash:
+        return LcmDropReason::kWrongHash;
+      case LcmDecodeFailure::kOversized:
+        return LcmDropReason::kOversized;
+      default:
+        return LcmDropReason::kMalformed;
+    }
+  }
+
+  // A message that does not decode: counted by reason and answered with an
+  // error_v1 naming the field, with the sender's ids as far as they were
+  // decoded before the failure.
+  void DropUndecodable(const char* type,
+                       const LcmDecodeResult& r,
+                       std::size_t size,
+                       const std::string& request_id,
+                       const std::string& robot,
+                       std::int64_t job_id,
+                       int stroke,
+                       int seq) {
+    Count(DropCounter(DropReasonOf(r.failure)));
+    PublishError(type,
+                 request_id,
+                 robot,
+                 job_id,
+                 stroke,
+                 seq,
+                 r.field,
+                 std::string(type) + " dropped (" +
+                     LcmDecodeFailureName(r.failure) + ", " +
+                     std::to_string(size) + " bytes): " + r.detail);
+  }
+
+  void HandleQueryBytes(const std::uint8_t* data, std::size_t size) {
     material_query_v1 q;
-    if (q.decode(rbuf->data, 0, rbuf->data_size) < 0) {
-      PublishError("material_query_v1",
-                   "",
-                   "",
-                   0,
-                   0,
-                   -1,
-                   "(encoding)",
-                   "material_query_v1: cannot decode " +
-                       std::to_string(rbuf->data_size) +
-                       " bytes (wrong type or truncated)");
+    if (const LcmDecodeResult r = DecodeLcm(data, size, &q, decode_limits_);
+        !r.ok()) {
+      DropUndecodable(
+          "material_query_v1", r, size, q.request_id, q.robot, 0, 0, -1);
+      // The robot waits for a reply to its request: answer it when known.
+      if (!q.request_id.empty()) {
+        material_reply_v1 reply;
+        reply.utime = NowUtime();
+        reply.request_id = q.request_id.substr(0, kMaxTextField);
+        reply.robot = q.robot.substr(0, kMaxTextField);
+        reply.status = material_reply_v1::STATUS_ERROR;
+        reply.reason = "material_query_v1 dropped (" +
+                       std::string(LcmDecodeFailureName(r.failure)) +
+                       "): " + r.detail;
+        reply.job_id = 0;
+        reply.recognition_score = 0;
+        reply.model.version = 0;
+        reply.model.n_terms = reply.model.n_quantiles = 0;
+        reply.model.has_lugre = false;
+        PublishToRobot(kLcmReplyChannel, reply, reply.robot);
+      }
       return;
     }
+    OnQuery(std::move(q));
+  }
+
+  void OnQuery(material_query_v1 q) {
     material_reply_v1 reply;
     reply.utime = NowUtime();
     reply.request_id = q.request_id.substr(0, kMaxTextField);
@@ -295,7 +493,7 @@ class LcmEndpointImpl {
     auto reject = [&](const std::string& field, const std::string& why) {
       reply.status = material_reply_v1::STATUS_ERROR;
       reply.reason = why;
-      publisher_->Publish(kLcmReplyChannel, reply);
+      PublishToRobot(kLcmReplyChannel, reply, reply.robot);
       PublishError(
           "material_query_v1", q.request_id, q.robot, 0, 0, -1, field, why);
     };
@@ -337,7 +535,7 @@ class LcmEndpointImpl {
           library_.RequireModel(q.material, reply.fingertip, "lcm:" + q.robot);
       reply.status = material_reply_v1::STATUS_KNOWN;
       reply.model = ToLcm(*model);
-      publisher_->Publish(kLcmReplyChannel, reply);
+      PublishToRobot(kLcmReplyChannel, reply, reply.robot);
     } catch (const RequestError& e) {
       if (e.status() != 404 || !e.extra().contains("identification"))
         return reject(e.field() == "id" ? "material" : e.field(), e.what());
@@ -345,7 +543,7 @@ class LcmEndpointImpl {
       reply.status = material_reply_v1::STATUS_UNKNOWN;
       reply.reason = e.what();
       reply.job_id = ident.value("job_id", std::int64_t{0});
-      publisher_->Publish(kLcmReplyChannel, reply);
+      PublishToRobot(kLcmReplyChannel, reply, reply.robot);
       PublishIdentificationRequest(reply.job_id,
                                    q.request_id,
                                    q.robot,
@@ -354,6 +552,14 @@ class LcmEndpointImpl {
                                    ident.at("stroke"),
                                    /*stroke=*/0,
                                    std::nullopt);
+    } catch (const std::exception& e) {
+      // The store or library failed (e.g. PostgreSQL away): the robot gets
+      // an error reply, the endpoint keeps serving.
+      Count(DropCounter(LcmDropReason::kInternal));
+      return reject("(daemon)",
+                    std::string("the library is unavailable (nothing "
+                                "stored; ask again later): ") +
+                        e.what());
     }
   }
 
@@ -391,7 +597,7 @@ class LcmEndpointImpl {
         "[v_min_mm_s, v_max_mm_s]; stream the samples as stroke_chunk_v1 on " +
         kLcmStrokeChannel + " with job_id " + std::to_string(job_id) +
         " and stroke " + std::to_string(stroke);
-    publisher_->Publish(kLcmIdentRequestChannel, r);
+    PublishToRobot(kLcmIdentRequestChannel, r, r.robot);
     // v2: the same plus the LuGre pair (a plan stored before the pair
     // existed asks for none).
     identification_request_v2 r2;
@@ -434,7 +640,7 @@ class LcmEndpointImpl {
           "triangle to lugre_slow_peak_mm_s at lugre_slow_accel_mm_s2 and "
           "lugre_fast_strokes fast triangles to lugre_fast_peak_mm_s at "
           "lugre_fast_accel_mm_s2, lugre_rest_s apart, in the same stroke";
-    publisher_->Publish(kLcmIdentRequestV2Channel, r2);
+    PublishToRobot(kLcmIdentRequestV2Channel, r2, r2.robot);
   }
 
   static SpanRect PlanSpan(const json& plan) {
@@ -481,21 +687,18 @@ class LcmEndpointImpl {
   }
 
   // Unsigned chunks: only when the daemon allows them.
-  void OnChunk(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+  void HandleChunkBytes(const std::uint8_t* data, std::size_t size) {
     stroke_chunk_v1 m;
-    if (m.decode(rbuf->data, 0, rbuf->data_size) < 0) {
-      PublishError("stroke_chunk_v1",
-                   "",
-                   "",
-                   0,
-                   0,
-                   -1,
-                   "(encoding)",
-                   "stroke_chunk_v1: cannot decode " +
-                       std::to_string(rbuf->data_size) +
-                       " bytes (wrong type or truncated)");
-      return;
-    }
+    if (const LcmDecodeResult r = DecodeLcm(data, size, &m, decode_limits_);
+        !r.ok())
+      return DropUndecodable("stroke_chunk_v1",
+                             r,
+                             size,
+                             "",
+                             m.robot,
+                             m.job_id,
+                             m.stroke,
+                             r.field == "seq" ? -1 : m.seq);
     if (!options_.security.allow_unsigned)
       return Drop("stroke_chunk_v1",
                   LcmDropReason::kUnsigned,
@@ -512,23 +715,19 @@ class LcmEndpointImpl {
   }
 
   // Signed chunks: robot key, MAC, timestamp and nonce, then as unsigned.
-  void OnSignedChunk(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+  void HandleSignedChunkBytes(const std::uint8_t* data, std::size_t size) {
     stroke_chunk_v2 s;
-    if (s.decode(rbuf->data, 0, rbuf->data_size) < 0) {
-      // Cannot even be read: counted as forged (nothing verifies).
-      Count(DropCounter(LcmDropReason::kForged));
-      PublishError("stroke_chunk_v2",
-                   "",
-                   "",
-                   0,
-                   0,
-                   -1,
-                   "(encoding)",
-                   "stroke_chunk_v2: cannot decode " +
-                       std::to_string(rbuf->data_size) +
-                       " bytes (wrong type or truncated)");
-      return;
-    }
+    if (const LcmDecodeResult r = DecodeLcm(data, size, &s, decode_limits_);
+        !r.ok())
+      // Not verified: the ids it names may be anyone's.
+      return DropUndecodable("stroke_chunk_v2",
+                             r,
+                             size,
+                             "",
+                             s.robot,
+                             s.job_id,
+                             s.stroke,
+                             r.field == "seq" ? -1 : s.seq);
     const LcmAuthVerdict v = auth_.Check(
         s.robot,
         s.utime,
@@ -682,7 +881,7 @@ class LcmEndpointImpl {
     out.min_span_pct = library_.options().plan.min_span_pct;
     out.model_version = version;
     out.detail = detail;
-    publisher_->Publish(kLcmProgressChannel, out);
+    PublishToRobot(kLcmProgressChannel, out, out.robot);
   }
 
   void OnReassemblyEvent(const ReassemblyEvent& e) {
@@ -974,6 +1173,8 @@ class LcmEndpointImpl {
   std::shared_ptr<LcmPublisher> publisher_;
   StrokeReassembler reassembler_;
   LcmAuthenticator auth_;
+  std::string fleet_key_;  // raw; empty: none
+  LcmDecodeLimits decode_limits_;
   std::map<std::int64_t, JobProgress> jobs_;
   // Jobs this endpoint claimed, with the time of the last claim renewal.
   std::map<std::int64_t, double> claimed_;
@@ -991,6 +1192,11 @@ LcmEndpoint::LcmEndpoint(FrictionLibrary& library, LcmEndpointOptions options)
 LcmEndpoint::~LcmEndpoint() = default;
 void LcmEndpoint::Start() { impl_->Start(); }
 void LcmEndpoint::Stop() { impl_->Stop(); }
+void LcmEndpoint::HandleMessage(const std::string& channel,
+                                const void* data,
+                                std::size_t size) {
+  impl_->HandleMessage(channel, data, size);
+}
 bool HaveLcmEndpoint() { return true; }
 
 }  // namespace frictiond
@@ -1010,6 +1216,7 @@ LcmEndpoint::LcmEndpoint(FrictionLibrary&, LcmEndpointOptions options) {
 LcmEndpoint::~LcmEndpoint() = default;
 void LcmEndpoint::Start() {}
 void LcmEndpoint::Stop() {}
+void LcmEndpoint::HandleMessage(const std::string&, const void*, std::size_t) {}
 bool HaveLcmEndpoint() { return false; }
 
 }  // namespace frictiond

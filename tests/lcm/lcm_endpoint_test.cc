@@ -33,6 +33,7 @@ class LcmEndpointTest : public ::testing::Test {
     o.max_strokes_per_job = 2;
     // These tests check validation of the chunk fields: unsigned chunks.
     o.security.allow_unsigned = true;
+    o.security.send_unsigned = true;  // the inbox reads unsigned messages
     // A stand-in recognition hook: "IMG:<id>" is recognised as <id>,
     // "IMG-BAD" cannot be decoded, anything else is unknown.
     o.recognize = [](const std::string& image) {
@@ -263,7 +264,9 @@ TEST_F(LcmEndpointTest, BadChunksAreRejectedNamingTheFieldAndStoreNothing) {
   inbox_->lcm().publish(
       kLcmStrokeChannel, bytes.data(), static_cast<unsigned>(bytes.size() - 9));
   ASSERT_TRUE(inbox_->WaitFor([&] { return inbox_->errors.size() > before; }));
-  EXPECT_EQ(inbox_->errors[before].field, "(encoding)");
+  // The field that runs past the end is named (was "(encoding)").
+  EXPECT_EQ(inbox_->errors[before].field, "n_samples");
+  EXPECT_NE(inbox_->errors[before].reason.find("truncated"), std::string::npos);
 
   // Nothing from the rejected chunks was stored and the job did not move.
   ExpectNothingStored("felt");

@@ -42,6 +42,12 @@ struct DaemonConfig {
   bool lcm_allow_unsigned = false;
   /// Timestamp window of signed LCM writes [s] (--lcm-max-skew-s).
   double lcm_max_skew_s = 30.0;
+  /// Also publish the unsigned replies, identification requests, progress
+  /// and model updates (--lcm-send-unsigned; config "lcm_send_unsigned").
+  /// Off: robots get them only signed, on the "_SIGNED" channels. Risk when
+  /// on: any device on the multicast group can forge them (e.g. feed a
+  /// robot a friction model); docs/security_lcm.md.
+  bool lcm_send_unsigned = false;
 
   /// The LCM keys as raw bytes (lcm_keys plus lcm_keys_file).
   /// @throws std::invalid_argument naming the file or robot and the rule.

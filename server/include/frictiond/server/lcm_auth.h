@@ -25,6 +25,13 @@ struct LcmSecurityOptions {
   /// Accept unsigned stroke_chunk_v1 on FRICTIOND_STROKE_V1 (off by
   /// default: unsigned writes are dropped and counted as "unsigned").
   bool allow_unsigned = false;
+  /// Also publish the unsigned forms of the messages to robots (replies,
+  /// identification requests, progress, model updates). Off: they go only
+  /// signed (signed_message_v1 on "<channel>_SIGNED", lcm_signed.h), with
+  /// the robot's key, or for a robot without a key and for model updates
+  /// with every robot key and the fleet key (the keys entry "fleet").
+  /// Risk when on: anyone on the group can forge them.
+  bool send_unsigned = false;
   /// Largest |daemon clock - message utime| accepted [s].
   double max_skew_s = 30.0;
   /// Nonces remembered per robot (bounds memory). When full, the oldest is
@@ -40,6 +47,14 @@ enum class LcmDropReason {
   kStale,         ///< timestamp outside the window
   kReplayed,      ///< nonce already seen (or older than the cache remembers)
   kUnsigned,      ///< unsigned write while allow_unsigned is off
+  // Messages that do not decode (lcm_codec.h, LcmDecodeFailure):
+  kMalformed,  ///< an invalid value (negative count, bad string, ...)
+  kTruncated,  ///< a field runs past the end of the message
+  kWrongHash,  ///< another type's fingerprint on this channel
+  kOversized,  ///< the message, a string or an array beyond the limits
+  /// The handler failed (e.g. the store is unavailable): answered with an
+  /// error, nothing stored, the endpoint keeps serving.
+  kInternal,
 };
 
 /// "unknown_robot", "forged", ... (the /metrics label).
