@@ -123,7 +123,10 @@ int Main(int argc, char** argv) {
     o.lcm = lcm_url;
     std::ofstream(dir.path() + "/keys.json")
         << "{\"" << robot << "\": \"" << key_hex << "\"}";
-    o.extra_args = {"--lcm-keys", dir.path() + "/keys.json"};
+    // Signed replies for the robot conversations; the unsigned copies too,
+    // for the plain queries (testing::QueryMaterialOnce reads those).
+    o.extra_args = {
+        "--lcm-keys", dir.path() + "/keys.json", "--lcm-send-unsigned"};
   } else {
     std::cerr << "soak: no LCM here (" << lcm_why << "); HTTP only\n";
   }
@@ -162,7 +165,6 @@ int Main(int argc, char** argv) {
     for (int i = 0; i < 50; ++i)
       c->Get(("/v1/materials/" + known + "/model").c_str());
   }
-  const std::size_t rss_start = RssKiB(daemon.pid(), "VmRSS:");
   const auto start = Clock::now();
   const auto deadline =
       start + std::chrono::milliseconds(static_cast<long>(seconds * 1000));
@@ -176,9 +178,31 @@ int Main(int argc, char** argv) {
       while (!stop) classify("lookup", c->Get(path.c_str()), 200);
     });
   }
-  // Uploads: acknowledged writes are remembered.
+  // Uploads: every 201 is an acknowledged write. The data stays bounded
+  // (RSS is then comparable from start to end): after 8 uploads a material
+  // is read back (its acknowledged strokes must all be listed) and deleted.
+  std::size_t acked_total = 0;
+  std::size_t lost = 0;
+  auto verify = [&](httplib::Client& c,
+                    const std::string& material,
+                    const std::vector<std::int64_t>& ids) {
+    auto res = c.Get(("/v1/materials/" + material + "/strokes").c_str());
+    std::vector<std::int64_t> listed;
+    if (res && res->status == 200) {
+      const json j = json::parse(res->body, nullptr, false);
+      if (j.is_object() && j.contains("strokes"))
+        for (const json& s : j["strokes"])
+          listed.push_back(s.value("id", std::int64_t{-1}));
+    }
+    std::size_t missing = 0;
+    for (std::int64_t id : ids)
+      if (std::find(listed.begin(), listed.end(), id) == listed.end())
+        ++missing;
+    return missing;
+  };
   pool.emplace_back([&] {
     auto c = daemon.MakeClient(30.0);
+    std::map<std::string, std::vector<std::int64_t>> ids;
     int k = 0;
     while (!stop) {
       testing::SimulationSpec spec;
@@ -195,13 +219,29 @@ int Main(int argc, char** argv) {
       if (res && res->status == 201) {
         const json j = json::parse(res->body, nullptr, false);
         if (j.is_object() && j.contains("stroke_id")) {
+          ids[material].push_back(j["stroke_id"].get<std::int64_t>());
           std::lock_guard<std::mutex> lock(acked_mu);
-          acked.push_back({material, j["stroke_id"].get<std::int64_t>()});
+          ++acked_total;
         } else {
           counts.Add("upload: 201 without stroke_id");
         }
       }
+      if (ids[material].size() >= 8 && !outage) {
+        const std::size_t missing = verify(*c, material, ids[material]);
+        std::lock_guard<std::mutex> lock(acked_mu);
+        lost += missing;
+        if (missing == 0) {
+          auto del = c->Delete(("/v1/materials/" + material).c_str());
+          classify("delete", del, 200);
+          if (del && del->status < 300) ids[material].clear();
+        }
+      }
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    // The rest is read back at the end.
+    std::lock_guard<std::mutex> lock(acked_mu);
+    for (auto& [material, list] : ids) {
+      for (std::int64_t id : list) acked.push_back({material, id});
     }
   });
   // Diagnosis and listings.
@@ -298,6 +338,9 @@ int Main(int argc, char** argv) {
         testing::RobotSimOptions r;
         r.url = lcm_url;
         r.robot = robot;
+        // A new material each time (the robot must find it unknown), one
+        // conversation every 5 s at most, so the library grows slowly.
+        const auto began = Clock::now();
         r.material = "soak-lcm-" + std::to_string(k++);
         r.key = std::string();
         for (std::size_t i = 0; i + 1 < key_hex.size(); i += 2)
@@ -311,6 +354,8 @@ int Main(int argc, char** argv) {
                           : "lcm signed strokes: failed");
         if (!out.ok)
           std::cerr << "soak: robot " << r.material << ": " << out.why << "\n";
+        while (!stop && Clock::now() - began < std::chrono::seconds(5))
+          std::this_thread::sleep_for(std::chrono::milliseconds(100));
       }
     });
   }
@@ -342,6 +387,12 @@ int Main(int argc, char** argv) {
     sqlite3_close(db);
   });
 
+  // RSS "at start": after the first 10 % of the run (at most 30 s), once
+  // every kind of request has run and the allocator's arenas are warm.
+  std::this_thread::sleep_until(
+      start + std::chrono::milliseconds(
+                  static_cast<long>(std::min(seconds * 100, 30000.0))));
+  const std::size_t rss_start = RssKiB(daemon.pid(), "VmRSS:");
   std::this_thread::sleep_until(deadline);
   stop = true;
   for (std::thread& t : pool) t.join();
@@ -349,23 +400,14 @@ int Main(int argc, char** argv) {
   const double elapsed_s =
       std::chrono::duration<double>(Clock::now() - start).count();
 
-  // Acknowledged writes lost: every 201 stroke must be listed.
-  std::size_t lost = 0;
+  // Acknowledged writes lost: every 201 stroke not yet verified must be
+  // listed.
   {
     auto c = daemon.MakeClient(30.0);
-    std::map<std::string, std::vector<std::int64_t>> listed;
-    for (const std::string m : {"soak-0", "soak-1", "soak-2"}) {
-      auto res = c->Get(("/v1/materials/" + m + "/strokes").c_str());
-      if (!res || res->status != 200) continue;
-      const json j = json::parse(res->body, nullptr, false);
-      if (!j.is_object() || !j.contains("strokes")) continue;
-      for (const json& s : j["strokes"])
-        listed[m].push_back(s.value("id", std::int64_t{-1}));
-    }
-    for (const Acked& a : acked) {
-      const auto& ids = listed[a.material];
-      if (std::find(ids.begin(), ids.end(), a.stroke_id) == ids.end()) ++lost;
-    }
+    std::map<std::string, std::vector<std::int64_t>> by_material;
+    for (const Acked& a : acked) by_material[a.material].push_back(a.stroke_id);
+    for (const auto& [material, ids] : by_material)
+      lost += verify(*c, material, ids);
   }
   const std::size_t rss_end = RssKiB(daemon.pid(), "VmRSS:");
   const std::size_t hwm = RssKiB(daemon.pid(), "VmHWM:");
@@ -377,7 +419,7 @@ int Main(int argc, char** argv) {
             << " requests served, LCM " << (lcm ? "on" : "off") << "\n";
   std::cout << "soak: daemon RSS start " << rss_start << " KiB, end " << rss_end
             << " KiB (peak " << hwm << " KiB)\n";
-  std::cout << "soak: acknowledged writes " << acked.size() << ", lost " << lost
+  std::cout << "soak: acknowledged writes " << acked_total << ", lost " << lost
             << "\n";
   for (const auto& [kind, n] : counts.Get()) {
     std::cout << "soak:   " << kind << ": " << n << "\n";

@@ -259,9 +259,15 @@ TEST_F(HostileHttpTest, BodiesAreBoundedWhileReadAndPeakMemoryStays) {
   const std::size_t peak_after = PeakRss(daemon_->pid());
   std::cout << "daemon peak RSS (VmHWM) before " << (peak_before >> 10)
             << " KiB, after " << (peak_after >> 10) << " KiB\n";
+#if defined(__SANITIZE_ADDRESS__)
+  // AddressSanitizer keeps freed blocks in quarantine (256 MiB by
+  // default), so the bound is only meaningful in a plain build.
+  std::cout << "(ASan build: peak RSS bound not checked)\n";
+#else
   EXPECT_LT(peak_after, peak_before + (64u << 20))
       << "peak RSS " << (peak_before >> 20) << " MiB -> " << (peak_after >> 20)
       << " MiB";
+#endif
   // Still serving.
   auto res = client->Get("/healthz");
   ASSERT_TRUE(res);

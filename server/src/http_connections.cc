@@ -188,6 +188,7 @@ void GuardedServer::StartWorkers() {
     ::listen(svr_sock_, std::max(limits_.max_queue, 128));
   wake_fd_ = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
   gate_ = std::thread([this] { GateLoop(); });
+  started_ = true;
   for (int i = 0; i < limits_.threads; ++i)
     workers_.emplace_back([this] { WorkerLoop(); });
 }
@@ -195,6 +196,7 @@ void GuardedServer::StartWorkers() {
 void GuardedServer::StopWorkers() {
   if (!gate_.joinable()) return;
   stopping_ = true;
+  started_ = false;
   Wake();
   {
     std::lock_guard<std::mutex> lock(queue_mu_);
@@ -233,7 +235,7 @@ bool GuardedServer::process_and_close_socket(socket_t sock) {
   // Answers go out as two writes (headers, body): no Nagle delay.
   const int yes = 1;
   ::setsockopt(sock, IPPROTO_TCP, TCP_NODELAY, &yes, sizeof yes);
-  if (stopping_ || !gate_.joinable() || open_ > limits_.max_connections) {
+  if (stopping_ || !started_ || open_ > limits_.max_connections) {
     ++refused_busy_;
     WriteQuickAnswer(
         sock, 503, "unavailable", "too many open connections; retry later");

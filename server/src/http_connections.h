@@ -133,6 +133,7 @@ class GuardedServer : public httplib::Server {
 
   ConnectionLimits limits_;
   std::atomic<bool> stopping_{false};
+  std::atomic<bool> started_{false};  ///< gate and workers running
   std::atomic<int> open_{0};
   std::atomic<std::size_t> refused_busy_{0};
   std::atomic<std::size_t> timed_out_{0};

@@ -1,5 +1,6 @@
 #include "frictiond/server/http_server.h"
 
+#include <algorithm>
 #include <charconv>
 #include <chrono>
 #include <cstdint>
@@ -339,6 +340,13 @@ HttpServer::HttpServer(HttpOptions options)
                               const httplib::ContentReader& content_reader) {
     const std::size_t limit = impl_->options.max_body_bytes;
     HttpRequest r = ToHttpRequest(req);
+    if (req.has_header("Content-Length")) {
+      // Checked against the limit before routing (pre-routing handler).
+      const std::string text = req.get_header_value("Content-Length");
+      std::size_t length = 0;
+      std::from_chars(text.data(), text.data() + text.size(), length);
+      r.body.reserve(std::min(length, limit));
+    }
     bool too_large = false;
     const bool ok = content_reader([&](const char* data, std::size_t n) {
       if (r.body.size() + n > limit) {

@@ -159,7 +159,12 @@ class Statement {
     const int rc = sqlite3_step(stmt_);
     if (rc == SQLITE_ROW) return true;
     if (rc == SQLITE_DONE) return false;
-    ThrowSqliteError(rc, sqlite3_errmsg(db_));
+    const std::string why = sqlite3_errmsg(db_);
+    // A failed statement left un-reset stays "in progress" and makes every
+    // later COMMIT on this connection fail, long after the cause (e.g. a
+    // lock held by another process) is gone.
+    sqlite3_reset(stmt_);
+    ThrowSqliteError(rc, why);
   }
   void Run() {
     while (Step()) {
