@@ -389,6 +389,13 @@ TEST_F(HostileHttpTest, InvalidTextIsRefusedAndListingsKeepWorking) {
   }
 }
 
+TEST_F(HostileHttpTest, ChosenBootstrapTokenIsNotEchoed) {
+  const std::string log = daemon_->ReadLog();
+  EXPECT_NE(log.find("created operator token"), std::string::npos) << log;
+  EXPECT_EQ(log.find(daemon_->options().operator_token), std::string::npos)
+      << log;
+}
+
 TEST_F(HostileHttpTest, ReadsRecordAtMostOneRequestAndListingsPage) {
   auto client = daemon_->MakeClient();
   for (int i = 0; i < 3; ++i) {
