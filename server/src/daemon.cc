@@ -84,7 +84,7 @@ void DaemonConfig::LoadFile(const std::string& path) {
   json j;
   try {
     j = json::parse(in);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {
     throw std::invalid_argument("--config " + path +
                                 ": invalid JSON: " + e.what());
   }

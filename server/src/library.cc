@@ -160,7 +160,7 @@ bool FrictionLibrary::PutMaterial(const std::string& id,
   if (!json_body.empty()) {
     try {
       body = json::parse(json_body);
-    } catch (const json::parse_error& e) {
+    } catch (const json::exception& e) {
       throw RequestError(
           400, "body", std::string("body: invalid JSON: ") + e.what());
     }
@@ -676,7 +676,7 @@ int FrictionLibrary::LoadBundledData(const std::string& dir) {
   json m;
   try {
     m = json::parse(in);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {
     throw std::runtime_error(manifest.string() + ": invalid JSON: " + e.what());
   }
   int loaded = 0;

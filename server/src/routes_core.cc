@@ -159,7 +159,7 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
     if (!req.body.empty()) {
       try {
         body = json::parse(req.body);
-      } catch (const json::parse_error& e) {
+      } catch (const json::exception& e) {
         throw RequestError(
             400, "body", std::string("body: invalid JSON: ") + e.what());
       }
