@@ -1,8 +1,9 @@
-# frictiond_library(NAME <name> [PUBLIC_LIBS ...] [PRIVATE_LIBS ...])
+# frictiond_library(NAME <name> [PUBLIC_LIBS ...] [PRIVATE_LIBS ...]
+#                   [TEST_LIBS ...] [FUZZ_LIBS ...])
 # One folder, one library: sources are src/*.cc, public headers are
 # include/frictiond/<name>/*.h, unit tests are test/*_test.cc.
 function(frictiond_library)
-  cmake_parse_arguments(ARG "" "NAME" "PUBLIC_LIBS;PRIVATE_LIBS;TEST_LIBS" ${ARGN})
+  cmake_parse_arguments(ARG "" "NAME" "PUBLIC_LIBS;PRIVATE_LIBS;TEST_LIBS;FUZZ_LIBS" ${ARGN})
   file(GLOB _srcs CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/src/*.cc)
   add_library(frictiond_${ARG_NAME} ${_srcs})
   add_library(frictiond::${ARG_NAME} ALIAS frictiond_${ARG_NAME})
@@ -21,11 +22,11 @@ function(frictiond_library)
     endforeach()
   endif()
   # libFuzzer harnesses beside the unit tests (STYLE.md 16): test/*_fuzzer.cc,
-  # linked with this library only; seeds in test/corpus/<name>/.
+  # linked with this library and FUZZ_LIBS; seeds in test/corpus/<name>/.
   file(GLOB _fuzzers CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/test/*_fuzzer.cc)
   foreach(_f ${_fuzzers})
     get_filename_component(_n ${_f} NAME_WE)
-    frictiond_add_fuzzer(${_n} SOURCES ${_f} LIBS frictiond::${ARG_NAME})
+    frictiond_add_fuzzer(${_n} SOURCES ${_f} LIBS frictiond::${ARG_NAME} ${ARG_FUZZ_LIBS})
   endforeach()
 endfunction()
 

@@ -33,6 +33,9 @@ run_in_netns() {
 echo "== tests"
 run_in_netns "ctest --test-dir '$root/build' --output-on-failure -j2 --timeout 600"
 
+echo "== soak (60 s mixed load with a store outage, docs/security.md)"
+run_in_netns "FRICTIOND_BIN_DIR='$root/build/bin' '$root/build/bench/soak' --seconds 60"
+
 if [ "${FRICTIOND_SKIP_SANITIZERS:-0}" != 1 ]; then
   echo "== unit tests under AddressSanitizer + UndefinedBehaviorSanitizer"
   FRICTIOND_BUILD_DIR=build-asan ./deploy/build.sh -DCMAKE_BUILD_TYPE=RelWithDebInfo \

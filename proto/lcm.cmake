@@ -31,16 +31,19 @@ target_compile_definitions(frictiond_lcmtypes INTERFACE FRICTIOND_HAVE_LCM=1)
 # Bounds-checked decoders of the message types (proto/lcm/, lcm_codec.h):
 # the codec half of the LCM endpoint, used by the daemon, the robot
 # simulator and the fuzz harnesses; no socket or liblcm call.
-add_library(frictiond_lcm_codec STATIC ${CMAKE_CURRENT_SOURCE_DIR}/lcm/src/lcm_codec.cc)
+add_library(frictiond_lcm_codec STATIC ${CMAKE_CURRENT_SOURCE_DIR}/lcm/src/lcm_codec.cc
+  ${CMAKE_CURRENT_SOURCE_DIR}/lcm/src/lcm_signed.cc)
 add_library(frictiond::lcm_codec ALIAS frictiond_lcm_codec)
 target_include_directories(frictiond_lcm_codec PUBLIC
   $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/lcm/include>)
-target_link_libraries(frictiond_lcm_codec PUBLIC frictiond_lcmtypes frictiond::crypto)
+target_link_libraries(frictiond_lcm_codec PUBLIC frictiond_lcmtypes frictiond::proto frictiond::crypto)
 target_compile_features(frictiond_lcm_codec PUBLIC cxx_std_17)
 frictiond_warnings(frictiond_lcm_codec)
 if(FRICTIOND_BUILD_TESTS)
-  frictiond_add_test(lcm_codec_test SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/lcm/test/lcm_codec_test.cc
-    LIBS frictiond::lcm_codec)
+  foreach(_n lcm_codec_test lcm_signed_test)
+    frictiond_add_test(${_n} SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/lcm/test/${_n}.cc
+      LIBS frictiond::lcm_codec)
+  endforeach()
 endif()
 frictiond_add_fuzzer(lcm_codec_fuzzer SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/lcm/test/lcm_codec_fuzzer.cc
   LIBS frictiond::lcm_codec)

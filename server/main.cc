@@ -6,6 +6,7 @@
 
 #include <CLI/CLI.hpp>
 #include <signal.h>
+#include <sys/stat.h>
 
 #include "frictiond/server/daemon.h"
 
@@ -40,6 +41,7 @@ int main(int argc, char** argv) {
   app.add_option("--threads", threads, "HTTP worker threads [8]");
   std::string lcm_keys;
   bool lcm_allow_unsigned = false;
+  bool lcm_send_unsigned = false;
   double lcm_max_skew_s = -1;
   app.add_option("--lcm-keys",
                  lcm_keys,
@@ -48,6 +50,11 @@ int main(int argc, char** argv) {
   app.add_flag("--lcm-allow-unsigned",
                lcm_allow_unsigned,
                "accept unsigned stroke_chunk_v1 on LCM (off: dropped)");
+  app.add_flag("--lcm-send-unsigned",
+               lcm_send_unsigned,
+               "also send unsigned replies, requests, progress and model "
+               "updates on LCM (forgeable by any device on the group; off: "
+               "signed only, docs/security_lcm.md)");
   app.add_option("--lcm-max-skew-s",
                  lcm_max_skew_s,
                  "timestamp window of signed LCM writes in s [30]");
@@ -61,7 +68,26 @@ int main(int argc, char** argv) {
                  bootstrap_token,
                  "secret of the operator token created on the first start "
                  "(env FRICTIOND_BOOTSTRAP_TOKEN) [random, printed once]");
+  std::string bootstrap_token_file;
+  app.add_option("--bootstrap-token-file",
+                 bootstrap_token_file,
+                 "file whose first line is the bootstrap secret (keeps it off "
+                 "the command line)");
+  int header_timeout_ms = -1, request_timeout_ms = -1, max_connections = -1;
+  app.add_option("--header-timeout-ms",
+                 header_timeout_ms,
+                 "HTTP: request line and headers must arrive within this "
+                 "time of the request's first byte [10000]");
+  app.add_option("--request-timeout-ms",
+                 request_timeout_ms,
+                 "HTTP: a whole request (headers and body) must arrive "
+                 "within this time [60000]");
+  app.add_option("--max-connections",
+                 max_connections,
+                 "HTTP: open connections at most; more get 503 [512]");
   CLI11_PARSE(app, argc, argv);
+  // Files the daemon creates (database, WAL, exports) are private.
+  ::umask(077);
 
   // Block the stop signals in every thread; one thread waits for them.
   sigset_t stop_signals;
@@ -82,13 +108,25 @@ int main(int argc, char** argv) {
     if (threads >= 0) config.threads = threads;
     if (!lcm_keys.empty()) config.lcm_keys_file = lcm_keys;
     if (lcm_allow_unsigned) config.lcm_allow_unsigned = true;
+    if (lcm_send_unsigned) config.lcm_send_unsigned = true;
     if (lcm_max_skew_s >= 0) config.lcm_max_skew_s = lcm_max_skew_s;
     if (!open_reads.empty()) config.open_reads = open_reads == "true";
-    if (bootstrap_token.empty()) {
+    if (!bootstrap_token.empty()) {
+      std::cerr << "frictiond: note: --bootstrap-token is visible to other "
+                   "users of this host (ps); prefer --bootstrap-token-file "
+                   "or FRICTIOND_BOOTSTRAP_TOKEN\n";
+    } else if (bootstrap_token_file.empty()) {
       if (const char* env = std::getenv("FRICTIOND_BOOTSTRAP_TOKEN"))
         bootstrap_token = env;
     }
+    // Not inherited by anything the daemon may start.
+    ::unsetenv("FRICTIOND_BOOTSTRAP_TOKEN");
     if (!bootstrap_token.empty()) config.bootstrap_token = bootstrap_token;
+    if (!bootstrap_token_file.empty())
+      config.bootstrap_token_file = bootstrap_token_file;
+    if (header_timeout_ms >= 0) config.header_timeout_ms = header_timeout_ms;
+    if (request_timeout_ms >= 0) config.request_timeout_ms = request_timeout_ms;
+    if (max_connections >= 0) config.max_connections = max_connections;
     frictiond::Daemon daemon(config);
     const int bound = daemon.Start();
     std::thread waiter([&daemon, stop_signals] {
@@ -98,7 +136,7 @@ int main(int argc, char** argv) {
       daemon.Stop();
     });
     std::cerr << "frictiond: serving http://" << config.bind << ":" << bound
-              << " (db " << config.db << ")\n";
+              << " (db " << frictiond::RedactDbUrl(config.db) << ")\n";
     daemon.Serve();
     // Serve returned: either a signal arrived or the server failed. Wake the
     // waiter if it is still waiting.

@@ -8,6 +8,7 @@
 
 #include "frictiond/crypto/hmac.h"
 #include "frictiond/server/request_error.h"
+#include "frictiond/server/text.h"
 
 namespace frictiond {
 
@@ -307,7 +308,7 @@ CreatedToken Authenticator::CreateToken(const std::string& name,
   if (!ParseRole(role))
     throw RequestError(400,
                        "role",
-                       "role '" + role.substr(0, 32) +
+                       "role '" + ShownText(role, 32) +
                            "' (must be reader, robot or operator)");
   if (!secret.empty() && !IsValidSecret(secret))
     throw RequestError(400,
@@ -373,7 +374,9 @@ void RegisterAuthRoutes(HttpServer& http, Authenticator& auth, Store& store) {
     }
     for (auto it = body.begin(); it != body.end(); ++it) {
       if (it.key() != "name" && it.key() != "role")
-        throw RequestError(400, it.key(), "unknown key '" + it.key() + "'");
+        throw RequestError(400,
+                           ShownText(it.key(), 64),
+                           "unknown key '" + ShownText(it.key(), 64) + "'");
     }
     const CreatedToken t = auth.CreateToken(body["name"].get<std::string>(),
                                             body["role"].get<std::string>());

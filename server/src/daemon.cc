@@ -6,6 +6,7 @@
 #include <iostream>
 #include <iterator>
 
+#include <fcntl.h>
 #include <unistd.h>
 
 #include "frictiond/crypto/hmac.h"
@@ -83,7 +84,7 @@ void DaemonConfig::LoadFile(const std::string& path) {
   json j;
   try {
     j = json::parse(in);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {
     throw std::invalid_argument("--config " + path +
                                 ": invalid JSON: " + e.what());
   }
@@ -124,7 +125,12 @@ void DaemonConfig::LoadFile(const std::string& path) {
                                   "lcm_keys_file",
                                   "lcm_allow_unsigned",
                                   "lcm_max_skew_s",
-                                  "recognition_operating_point"};
+                                  "recognition_operating_point",
+                                  "lcm_send_unsigned",
+                                  "bootstrap_token_file",
+                                  "header_timeout_ms",
+                                  "request_timeout_ms",
+                                  "max_connections"};
     if (std::find(std::begin(kKeys), std::end(kKeys), it.key()) ==
         std::end(kKeys)) {
       throw std::invalid_argument(path + ": unknown key '" + it.key() + "'");
@@ -135,6 +141,10 @@ void DaemonConfig::LoadFile(const std::string& path) {
   str("data", &data_dir);
   str("lcm", &lcm_url);
   str("bootstrap_token", &bootstrap_token);
+  str("bootstrap_token_file", &bootstrap_token_file);
+  integer(j, "header_timeout_ms", &header_timeout_ms);
+  integer(j, "request_timeout_ms", &request_timeout_ms);
+  integer(j, "max_connections", &max_connections);
   if (j.contains("open_reads")) {
     if (!j["open_reads"].is_boolean())
       throw std::invalid_argument(path +
@@ -150,6 +160,12 @@ void DaemonConfig::LoadFile(const std::string& path) {
       throw std::invalid_argument(
           path + ": lcm_allow_unsigned: expected true or false");
     lcm_allow_unsigned = j["lcm_allow_unsigned"].get<bool>();
+  }
+  if (j.contains("lcm_send_unsigned")) {
+    if (!j["lcm_send_unsigned"].is_boolean())
+      throw std::invalid_argument(
+          path + ": lcm_send_unsigned: expected true or false");
+    lcm_send_unsigned = j["lcm_send_unsigned"].get<bool>();
   }
   if (j.contains("lcm_max_skew_s")) {
     if (!j["lcm_max_skew_s"].is_number())
@@ -232,18 +248,79 @@ void DaemonConfig::Validate() const {
                                 std::to_string(lcm_max_skew_s) +
                                 ": must be in (0, 3600]");
   LoadLcmKeys();  // throws naming the file or robot
-  if (!bootstrap_token.empty() &&
-      (bootstrap_token.size() < 16 || bootstrap_token.size() > 256 ||
-       std::any_of(bootstrap_token.begin(), bootstrap_token.end(), [](char c) {
-         return !(c > 0x20 && c < 0x7f);
-       })))
+  if (!(header_timeout_ms >= 100 && header_timeout_ms <= 600000))
+    throw std::invalid_argument("--header-timeout-ms " +
+                                std::to_string(header_timeout_ms) +
+                                ": must be in 100..600000");
+  if (!(request_timeout_ms >= header_timeout_ms &&
+        request_timeout_ms <= 3600000))
+    throw std::invalid_argument("--request-timeout-ms " +
+                                std::to_string(request_timeout_ms) +
+                                ": must be in --header-timeout-ms..3600000");
+  if (!(max_connections >= 1 && max_connections <= 100000))
+    throw std::invalid_argument("--max-connections " +
+                                std::to_string(max_connections) +
+                                ": must be in 1..100000");
+  const std::string secret = BootstrapSecret();  // the value is never shown
+  if (!secret.empty() && (secret.size() < 16 || secret.size() > 256 ||
+                          std::any_of(secret.begin(), secret.end(), [](char c) {
+                            return !(c > 0x20 && c < 0x7f);
+                          })))
     throw std::invalid_argument(
-        "--bootstrap-token: must be 16..256 printable characters without "
-        "spaces");
+        std::string(bootstrap_token.empty() ? "--bootstrap-token-file "
+                                            : "--bootstrap-token") +
+        (bootstrap_token.empty() ? bootstrap_token_file : std::string()) +
+        ": must be 16..256 printable characters without spaces");
   if (lcm_url != "none" && !HaveLcmEndpoint())
     throw std::invalid_argument("--lcm " + lcm_url +
                                 ": this build has no LCM support "
                                 "(FRICTIOND_WITH_LCM=OFF); use --lcm none");
+}
+
+std::string DaemonConfig::BootstrapSecret() const {
+  if (!bootstrap_token.empty() || bootstrap_token_file.empty())
+    return bootstrap_token;
+  std::ifstream in(bootstrap_token_file);
+  if (!in)
+    throw std::invalid_argument("--bootstrap-token-file " +
+                                bootstrap_token_file + ": cannot read");
+  std::string line;
+  std::getline(in, line);
+  while (!line.empty() && (line.back() == '\r' || line.back() == ' '))
+    line.pop_back();
+  return line;
+}
+
+std::string RedactDbUrl(const std::string& url) {
+  std::string out = url;
+  const bool is_url =
+      url.rfind("postgresql://", 0) == 0 || url.rfind("postgres://", 0) == 0;
+  if (is_url) {
+    // scheme://user:PASSWORD@host...
+    const std::size_t start = url.find("://") + 3;
+    const std::size_t at = url.find('@', start);
+    const std::size_t slash = url.find('/', start);
+    if (at != std::string::npos && (slash == std::string::npos || at < slash)) {
+      const std::size_t colon = url.find(':', start);
+      if (colon != std::string::npos && colon < at)
+        out = url.substr(0, colon + 1) + "***" + url.substr(at);
+    }
+  }
+  if (is_url || url.find('=') != std::string::npos) {
+    // ?password=... or &password=... (URL), password=... (conninfo)
+    std::size_t pos = 0;
+    while ((pos = out.find("password=", pos)) != std::string::npos) {
+      const bool starts = pos == 0 || out[pos - 1] == '?' ||
+                          out[pos - 1] == '&' || out[pos - 1] == ' ';
+      pos += 9;
+      if (!starts) continue;
+      std::size_t end = out.find_first_of("& ", pos);
+      if (end == std::string::npos) end = out.size();
+      out.replace(pos, end - pos, "***");
+      pos += 3;
+    }
+  }
+  return out;
 }
 
 Daemon::Daemon(DaemonConfig config) : config_(std::move(config)) {
@@ -255,6 +332,20 @@ Daemon::~Daemon() { Stop(); }
 int Daemon::Start() {
   LibraryOptions lo;
   lo.plan = config_.plan;
+  {
+    // Database and its WAL/SHM files are private to the daemon's user:
+    // SQLite gives the -wal and -shm files the mode of the database file.
+    const bool sqlite_file = config_.db.rfind("postgres", 0) != 0 &&
+                             config_.db != ":memory:" &&
+                             config_.db.rfind("file:", 0) != 0;
+    if (sqlite_file) {
+      std::string path = config_.db;
+      if (path.rfind("sqlite://", 0) == 0) path = path.substr(9);
+      const int fd =
+          ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+      if (fd >= 0) ::close(fd);
+    }
+  }
   library_ = std::make_unique<FrictionLibrary>(OpenStore(config_.db), lo);
   if (!config_.data_dir.empty() && config_.data_dir != "none") {
     const int n = library_->LoadBundledData(config_.data_dir);
@@ -265,19 +356,25 @@ int Daemon::Start() {
   HttpOptions ho;
   ho.max_body_bytes = static_cast<std::size_t>(config_.max_body_mb) << 20;
   ho.threads = config_.threads;
+  ho.header_timeout_ms = config_.header_timeout_ms;
+  ho.request_timeout_ms = config_.request_timeout_ms;
+  ho.max_connections = config_.max_connections;
   http_ = std::make_unique<HttpServer>(ho);
   AuthOptions ao;
   ao.open_reads = config_.open_reads && IsLoopbackAddress(config_.bind);
   auth_ =
       std::make_unique<Authenticator>(library_->store(), http_->metrics(), ao);
-  if (auto boot = auth_->BootstrapIfEmpty(config_.bootstrap_token)) {
-    if (config_.bootstrap_token.empty()) {
+  const std::string boot_secret = config_.BootstrapSecret();
+  if (auto boot = auth_->BootstrapIfEmpty(boot_secret)) {
+    if (boot_secret.empty()) {
       std::cout << "operator token: " << boot->secret << std::endl;
       std::cerr << "frictiond: created operator token " << boot->record.id
                 << " (secret printed once on stdout; keep it)\n";
     } else {
       std::cerr << "frictiond: created operator token " << boot->record.id
-                << " with the secret given by --bootstrap-token\n";
+                << " with the secret given by --bootstrap-token, "
+                   "--bootstrap-token-file or FRICTIOND_BOOTSTRAP_TOKEN "
+                   "(not shown)\n";
     }
   }
   if (config_.open_reads && !ao.open_reads)
@@ -306,6 +403,7 @@ int Daemon::Start() {
     lo_lcm.security.keys = config_.LoadLcmKeys();
     lo_lcm.security.allow_unsigned = config_.lcm_allow_unsigned;
     lo_lcm.security.max_skew_s = config_.lcm_max_skew_s;
+    lo_lcm.security.send_unsigned = config_.lcm_send_unsigned;
     lo_lcm.metrics = &http_->metrics();
     if (lo_lcm.security.keys.empty() && !lo_lcm.security.allow_unsigned)
       std::cerr << "frictiond: LCM: no lcm_keys and lcm_allow_unsigned off: "

@@ -1,12 +1,18 @@
 #include "frictiond/server/http_server.h"
 
+#include <algorithm>
+#include <charconv>
 #include <chrono>
+#include <cstdint>
 #include <iostream>
 
 #include <httplib.h>
 
 #include "frictiond/server/request_error.h"
+#include "frictiond/server/text.h"
 #include "frictiond/storage/store.h"
+
+#include "http_connections.h"
 
 namespace frictiond {
 
@@ -43,7 +49,12 @@ std::string HttpRequest::Header(const std::string& name) const {
 }
 
 HttpResponse HttpResponse::Json(int status, const json& body) {
-  return HttpResponse{status, "application/json", body.dump(), {}};
+  // Strings reaching a response are checked where they enter (text.h); the
+  // replacing dump is the last guard, so no stored byte can turn into a 500.
+  return HttpResponse{status,
+                      "application/json",
+                      body.dump(-1, ' ', false, json::error_handler_t::replace),
+                      {}};
 }
 
 HttpResponse HttpResponse::RawJson(int status, std::string body) {
@@ -130,65 +141,247 @@ std::string ErrorTitle(int status) {
   }
 }
 
+// Checks the text of a request every handler may read: path segments,
+// query names and values, header values (text.h). Throws RequestError(400).
+// Path captures are only checked for UTF-8 and length here, under the
+// capture's name; the route's own id rule (CheckId) names what else fails.
+void CheckRequestText(const HttpRequest& r, const RouteEntry& e) {
+  std::size_t k = 0;
+  for (const std::string& p : e.segments) {
+    if (p.empty() || p.front() != '{') continue;
+    if (k >= r.params.size()) break;
+    const std::string name = p.substr(1, p.size() - 2);
+    const std::string& value = r.params[k++];
+    if (value.size() > kMaxPathSegmentBytes || !IsValidUtf8(value))
+      CheckText(value, name, kMaxPathSegmentBytes);
+  }
+  for (const auto& [k, v] : r.query) {
+    CheckText(k, "query", kMaxPathSegmentBytes);
+    CheckText(v, k, kMaxQueryValueBytes);
+  }
+  for (const auto& [k, v] : r.headers) {
+    CheckText(k, "header", kMaxPathSegmentBytes);
+    CheckText(v, "header " + k, kMaxHeaderValueBytes);
+  }
+}
+
+std::string ErrorJson(int status,
+                      const std::string& detail,
+                      const std::string& field = "") {
+  json j = {{"error", ErrorTitle(status)}, {"detail", detail}};
+  if (!field.empty()) j["field"] = field;
+  return j.dump(-1, ' ', false, json::error_handler_t::replace);
+}
+
+// Answers from the HTTP layer and closes the connection afterwards (a
+// body may be left unread).
+void RejectAndClose(httplib::Response& res,
+                    int status,
+                    const std::string& detail,
+                    const std::string& field = "") {
+  res.status = status;
+  res.set_header("Connection", "close");
+  res.set_content(ErrorJson(status, detail, field), "application/json");
+  if (auto* strm = internal::ConnectionStream::Current())
+    strm->CloseAfterResponse();
+}
+
+HttpRequest ToHttpRequest(const httplib::Request& req) {
+  HttpRequest r;
+  r.method = req.method;
+  r.path = req.path;
+  r.remote_addr = req.remote_addr;
+  for (const auto& [k, v] : req.params) r.query.emplace(k, v);
+  for (const auto& [k, v] : req.headers) {
+    // httplib adds these itself; they are not the client's.
+    if (k == "REMOTE_ADDR" || k == "REMOTE_PORT" || k == "LOCAL_ADDR" ||
+        k == "LOCAL_PORT")
+      continue;
+    r.headers.emplace(k, v);
+  }
+  return r;
+}
+
 }  // namespace
 
 struct HttpServer::Impl {
+  explicit Impl(const HttpOptions& o)
+      : options(o), server([&o] {
+          internal::ConnectionLimits l;
+          l.threads = o.threads;
+          l.max_connections = o.max_connections;
+          l.max_queue = o.max_queue;
+          l.max_header_bytes = o.max_header_bytes;
+          l.header_timeout_ms = o.header_timeout_ms;
+          l.request_timeout_ms = o.request_timeout_ms;
+          l.read_timeout_ms = o.read_timeout_s * 1000;
+          l.write_timeout_ms = o.read_timeout_s * 1000;
+          l.keep_alive_timeout_ms = o.keep_alive_timeout_s * 1000;
+          l.keep_alive_max_count = o.keep_alive_max_count;
+          return l;
+        }()) {}
   HttpOptions options;
-  httplib::Server server;
+  internal::GuardedServer server;
   std::vector<RouteEntry> routes;
   Metrics metrics;
   HttpAuthorizer authorizer;
   HttpObserver observer;
 };
 
-HttpServer::HttpServer(HttpOptions options) : impl_(std::make_unique<Impl>()) {
-  impl_->options = options;
+HttpServer::HttpServer(HttpOptions options)
+    : impl_(std::make_unique<Impl>(options)) {
   auto& svr = impl_->server;
-  const int threads = options.threads;
-  svr.new_task_queue = [threads] {
-    return new httplib::ThreadPool(static_cast<size_t>(threads));
-  };
   svr.set_payload_max_length(options.max_body_bytes);
   svr.set_keep_alive_max_count(
       static_cast<size_t>(options.keep_alive_max_count));
   svr.set_keep_alive_timeout(options.keep_alive_timeout_s);
   svr.set_read_timeout(options.read_timeout_s, 0);
   svr.set_tcp_nodelay(true);
-  // Every route goes through Dispatch; httplib only parses and writes.
-  auto handle = [this](const httplib::Request& req, httplib::Response& res) {
-    // httplib 0.11 enforces payload_max_length only on bodies that declare a
-    // Content-Length; chunked (or compressed) bodies arrive here unchecked.
-    if (req.body.size() > impl_->options.max_body_bytes) {
-      res.status = 413;
-      res.set_content(json{{"error", "payload too large"},
-                           {"detail",
-                            "body: " + std::to_string(req.body.size()) +
-                                " bytes, larger than the limit of " +
-                                std::to_string(impl_->options.max_body_bytes) +
-                                " (see --max-body-mb)"}}
-                          .dump(),
-                      "application/json");
-      return;
+  // Everything decidable from the request line and headers is decided
+  // before a body byte is read: encodings, declared size, route and
+  // authentication (httplib 0.11 would otherwise buffer a chunked or
+  // length-less body whole, and inflate gzip without a limit).
+  svr.set_pre_routing_handler([this](const httplib::Request& req,
+                                     httplib::Response& res) {
+    const std::string encoding = req.get_header_value("Content-Encoding");
+    if (!encoding.empty() && encoding != "identity") {
+      RejectAndClose(res,
+                     415,
+                     "Content-Encoding " + ShownText(encoding) +
+                         ": compressed request bodies are not accepted "
+                         "(send identity)",
+                     "Content-Encoding");
+      return httplib::Server::HandlerResponse::Handled;
     }
-    HttpRequest r;
-    r.method = req.method;
-    r.path = req.path;
-    r.body = req.body;
-    r.remote_addr = req.remote_addr;
-    for (const auto& [k, v] : req.params) r.query.emplace(k, v);
-    for (const auto& [k, v] : req.headers) r.headers.emplace(k, v);
+    const bool has_te = req.has_header("Transfer-Encoding");
+    const bool chunked = has_te && req.get_header_value("Transfer-Encoding") ==
+                                       std::string("chunked");
+    if (has_te && !chunked) {
+      RejectAndClose(res,
+                     415,
+                     "Transfer-Encoding " +
+                         ShownText(req.get_header_value("Transfer-Encoding")) +
+                         ": only chunked is accepted",
+                     "Transfer-Encoding");
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    const bool has_length = req.has_header("Content-Length");
+    if (has_length &&
+        (chunked || req.get_header_value_count("Content-Length") != 1)) {
+      RejectAndClose(res,
+                     400,
+                     "Content-Length with Transfer-Encoding, or twice",
+                     "Content-Length");
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    if (has_length) {
+      const std::string text = req.get_header_value("Content-Length");
+      std::uint64_t length = 0;
+      const auto [p, ec] =
+          std::from_chars(text.data(), text.data() + text.size(), length);
+      if (text.empty() || ec != std::errc() || p != text.data() + text.size()) {
+        RejectAndClose(res,
+                       400,
+                       "Content-Length " + ShownText(text) +
+                           ": not a non-negative integer",
+                       "Content-Length");
+        return httplib::Server::HandlerResponse::Handled;
+      }
+      if (length > impl_->options.max_body_bytes) {
+        RejectAndClose(res,
+                       413,
+                       "body: " + text + " bytes, larger than the limit of " +
+                           std::to_string(impl_->options.max_body_bytes) +
+                           " (see --max-body-mb)",
+                       "body");
+        return httplib::Server::HandlerResponse::Handled;
+      }
+    }
+    const bool has_body =
+        chunked ||
+        (has_length &&
+         req.get_header_value("Content-Length") != std::string("0")) ||
+        (!has_length && (req.method == "POST" || req.method == "PUT" ||
+                         req.method == "PATCH"));
+    if (has_body) {
+      if (auto rejected = Admit(ToHttpRequest(req))) {
+        res.status = rejected->status;
+        res.set_header("Connection", "close");
+        for (const auto& [k, v] : rejected->headers) res.set_header(k, v);
+        res.set_content(rejected->body, rejected->content_type.c_str());
+        if (auto* strm = internal::ConnectionStream::Current())
+          strm->CloseAfterResponse();
+        return httplib::Server::HandlerResponse::Handled;
+      }
+      // A GET or HEAD body is never read: close after answering.
+      if (req.method != "POST" && req.method != "PUT" &&
+          req.method != "PATCH" && req.method != "DELETE") {
+        if (auto* strm = internal::ConnectionStream::Current())
+          strm->CloseAfterResponse();
+      }
+    }
+    return httplib::Server::HandlerResponse::Unhandled;
+  });
+  // Every route goes through Dispatch; httplib only parses and writes.
+  auto answer = [this](HttpRequest r, httplib::Response& res) {
     HttpResponse out = Dispatch(std::move(r));
     res.status = out.status;
     for (const auto& [k, v] : out.headers) res.set_header(k, v);
     res.set_content(std::move(out.body), out.content_type.c_str());
   };
+  auto handle = [answer](const httplib::Request& req, httplib::Response& res) {
+    answer(ToHttpRequest(req), res);
+  };
+  // Bodies are read here, counted while they arrive: Content-Length,
+  // chunked and length-less alike stop at max_body_bytes + 1 and answer 413.
+  auto handle_with_body = [this, answer](
+                              const httplib::Request& req,
+                              httplib::Response& res,
+                              const httplib::ContentReader& content_reader) {
+    const std::size_t limit = impl_->options.max_body_bytes;
+    HttpRequest r = ToHttpRequest(req);
+    if (req.has_header("Content-Length")) {
+      // Checked against the limit before routing (pre-routing handler).
+      const std::string text = req.get_header_value("Content-Length");
+      std::size_t length = 0;
+      std::from_chars(text.data(), text.data() + text.size(), length);
+      r.body.reserve(std::min(length, limit));
+    }
+    bool too_large = false;
+    const bool ok = content_reader([&](const char* data, std::size_t n) {
+      if (r.body.size() + n > limit) {
+        too_large = true;
+        return false;
+      }
+      r.body.append(data, n);
+      return true;
+    });
+    if (!ok || too_large) {
+      auto* strm = internal::ConnectionStream::Current();
+      if (too_large) {
+        RejectAndClose(res,
+                       413,
+                       "body: more than the limit of " + std::to_string(limit) +
+                           " bytes (see --max-body-mb)",
+                       "body");
+      } else if (strm && strm->timed_out()) {
+        RejectAndClose(
+            res, 408, "body not complete within the request deadline", "body");
+      } else {
+        RejectAndClose(res, 400, "body: malformed or cut short", "body");
+      }
+      impl_->metrics.Record("unmatched", req.method, res.status, 0.0);
+      return;
+    }
+    answer(std::move(r), res);
+  };
   svr.Get(".*", handle);
-  svr.Post(".*", handle);
-  svr.Put(".*", handle);
-  svr.Delete(".*", handle);
-  svr.Patch(".*", handle);
+  svr.Post(".*", handle_with_body);
+  svr.Put(".*", handle_with_body);
+  svr.Delete(".*", handle_with_body);
+  svr.Patch(".*", handle_with_body);
   svr.Options(".*", handle);
-  // Errors httplib produces itself (413, 400 on malformed requests): JSON too.
+  // Errors httplib produces itself (400 on malformed requests, 414): JSON.
   svr.set_error_handler(httplib::Server::HandlerWithResponse(
       [](const httplib::Request&, httplib::Response& res) {
         if (!res.body.empty())
@@ -196,17 +389,13 @@ HttpServer::HttpServer(HttpOptions options) : impl_(std::make_unique<Impl>()) {
         std::string detail = "request rejected by the HTTP layer";
         if (res.status == 413)
           detail = "body larger than the limit (see --max-body-mb)";
-        res.set_content(
-            json{{"error", ErrorTitle(res.status)}, {"detail", detail}}.dump(),
-            "application/json");
+        res.set_content(ErrorJson(res.status, detail), "application/json");
         return httplib::Server::HandlerResponse::Handled;
       }));
   svr.set_exception_handler(
       [](const httplib::Request&, httplib::Response& res, std::exception_ptr) {
         res.status = 500;
-        res.set_content(json{{"error", "internal error"},
-                             {"detail", "unexpected exception"}}
-                            .dump(),
+        res.set_content(ErrorJson(500, "unexpected exception"),
                         "application/json");
       });
 }
@@ -234,6 +423,15 @@ void HttpServer::SetAuthorizer(HttpAuthorizer authorizer,
 }
 
 HttpResponse HttpServer::Dispatch(HttpRequest request) const {
+  return *Run(std::move(request), /*headers_only=*/false);
+}
+
+std::optional<HttpResponse> HttpServer::Admit(HttpRequest request) const {
+  return Run(std::move(request), /*headers_only=*/true);
+}
+
+std::optional<HttpResponse> HttpServer::Run(HttpRequest request,
+                                            bool headers_only) const {
   const auto start = std::chrono::steady_clock::now();
   std::string route = "unmatched";
   HttpResponse out;
@@ -255,10 +453,13 @@ HttpResponse HttpServer::Dispatch(HttpRequest request) const {
     MatchRoute(*entry, segs, request.path, &captures);
     request.params = std::move(captures);
     try {
+      CheckRequestText(request, *entry);
       std::optional<HttpResponse> rejected;
       if (impl_->authorizer) rejected = impl_->authorizer(request, route);
       if (rejected) {
         out = std::move(*rejected);
+      } else if (headers_only) {
+        return std::nullopt;  // admitted; Dispatch runs the handler later
       } else {
         out = entry->handler(request);
       }
@@ -288,20 +489,15 @@ HttpResponse HttpServer::Dispatch(HttpRequest request) const {
       }
     }
   } else if (path_matched) {
-    out =
-        HttpResponse::Error(405,
-                            "method not allowed",
-                            request.method + " is not supported on this path");
+    out = HttpResponse::Error(
+        405,
+        "method not allowed",
+        ShownText(request.method, 16) + " is not supported on this path");
   } else {
-    std::string shown = request.path.substr(0, 100);
-    for (char& c : shown) {
-      if (static_cast<unsigned char>(c) < 0x20 ||
-          static_cast<unsigned char>(c) >= 0x7f)
-        c = '?';
-    }
     out = HttpResponse::Error(404,
                               "not found",
-                              "no route for " + request.method + " " + shown,
+                              "no route for " + ShownText(request.method, 16) +
+                                  " " + ShownText(request.path, 100),
                               "path");
   }
   const double seconds =
@@ -322,13 +518,16 @@ int HttpServer::Bind(const std::string& address, int port) {
   if (bound <= 0)
     throw std::runtime_error("cannot bind HTTP to " + address + ":" +
                              std::to_string(port));
+  svr.StartWorkers();
   return bound;
 }
 
 void HttpServer::Serve() { impl_->server.listen_after_bind(); }
 
 void HttpServer::Stop() {
-  if (impl_) impl_->server.stop();
+  if (!impl_) return;
+  impl_->server.stop();
+  impl_->server.StopWorkers();
 }
 
 bool HttpServer::running() const { return impl_->server.is_running(); }

@@ -17,6 +17,8 @@
 #include <random>
 #include <set>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include <lcm/lcm-cpp.hpp>
 #include <unistd.h>
@@ -34,6 +36,7 @@
 #include "frictiond/model_update_v1.hpp"
 #include "frictiond/proto/lcm_channels.h"
 #include "frictiond/proto/lcm_codec.h"
+#include "frictiond/proto/lcm_signed.h"
 #include "frictiond/proto/lugre_json.h"
 #include "frictiond/stroke_chunk_v1.hpp"
 #include "frictiond/stroke_chunk_v2.hpp"
@@ -142,6 +145,22 @@ class LcmPublisher {
     std::lock_guard<std::mutex> lock(mu_);
     lcm_ = nullptr;
   }
+  /// A message to robots: signed (signed_message_v1 on "<channel>_SIGNED")
+  /// once per key of `keys` (key id, key), and unsigned on `channel` only
+  /// when `send_unsigned`.
+  template <class Message>
+  void PublishToRobots(
+      const char* channel,
+      const Message& message,
+      const std::vector<std::pair<std::string, std::string>>& keys,
+      bool send_unsigned) {
+    if (send_unsigned) Publish(channel, message);
+    if (keys.empty()) return;
+    const std::string bytes = EncodeLcm(message);
+    const std::string signed_channel = LcmSignedChannel(channel);
+    for (const auto& [id, key] : keys)
+      Publish(signed_channel.c_str(), SignLcmPayload(bytes, channel, id, key));
+  }
 
  private:
   std::mutex mu_;
@@ -164,7 +183,10 @@ class LcmEndpointImpl {
         options_(std::move(options)),
         lcm_(options_.url),
         reassembler_(options_.reassembly),
-        auth_(options_.security) {
+        auth_(WithoutFleetKey(options_.security)) {
+    if (auto it = options_.security.keys.find(kLcmFleetKeyId);
+        it != options_.security.keys.end())
+      fleet_key_ = it->second;
     if (!lcm_.good())
       throw std::runtime_error(
           "--lcm " + options_.url +
@@ -192,7 +214,10 @@ class LcmEndpointImpl {
     Count("lcm_signed_accepted_total", 0);
     // Tell the fleet about every new model version, from any endpoint.
     std::weak_ptr<LcmPublisher> weak = publisher_;
-    library_.AddModelListener([weak](const CachedModel& m) {
+    library_.AddModelListener([weak,
+                               keys = BroadcastKeys(),
+                               send_unsigned = options_.security.send_unsigned](
+                                  const CachedModel& m) {
       auto p = weak.lock();
       if (!p) return;
       model_update_v1 u;
@@ -205,7 +230,7 @@ class LcmEndpointImpl {
               ? doc["reason"].get<std::string>()
               : std::string();
       u.model = ToLcm(m);
-      p->Publish(kLcmModelUpdateChannel, u);
+      p->PublishToRobots(kLcmModelUpdateChannel, u, keys, send_unsigned);
     });
   }
 
@@ -223,6 +248,26 @@ class LcmEndpointImpl {
   void Stop() {
     stop_ = true;
     if (thread_.joinable()) thread_.join();
+  }
+
+  void HandleMessage(const std::string& channel,
+                     const void* data,
+                     std::size_t size) {
+    lcm::ReceiveBuffer rbuf{};
+    rbuf.data = const_cast<void*>(data);
+    rbuf.data_size =
+        static_cast<std::uint32_t>(std::min<std::size_t>(size, UINT32_MAX));
+    if (channel == kLcmQueryChannel) OnQueryBytes(&rbuf, channel);
+    if (channel == kLcmStrokeChannel) OnChunkBytes(&rbuf, channel);
+    if (channel == kLcmSignedStrokeChannel) OnSignedChunkBytes(&rbuf, channel);
+    try {
+      for (const ReassemblyEvent& e : reassembler_.Poll(NowMonotonicS()))
+        OnReassemblyEvent(e);
+      while (lcm_.handleTimeout(0) > 0) {
+      }
+    } catch (const std::exception& e) {
+      std::cerr << "frictiond: lcm endpoint: " << e.what() << "\n";
+    }
   }
 
  private:
@@ -248,6 +293,39 @@ class LcmEndpointImpl {
         std::cerr << "frictiond: lcm endpoint: " << e.what() << "\n";
       }
     }
+  }
+
+  using SigningKeys = std::vector<std::pair<std::string, std::string>>;
+  // The security options without the fleet key (the keys entry "fleet"
+  // signs messages to robots; it never authenticates a robot's write).
+  static LcmSecurityOptions WithoutFleetKey(LcmSecurityOptions s) {
+    s.keys.erase(kLcmFleetKeyId);
+    return s;
+  }
+  // Keys of a message every robot may read (model updates): each robot's
+  // key (at most kMaxBroadcastKeys) and the fleet key.
+  SigningKeys BroadcastKeys() const {
+    constexpr std::size_t kMaxBroadcastKeys = 64;
+    SigningKeys keys;
+    for (const auto& [robot, key] : auth_.options().keys) {
+      if (keys.size() >= kMaxBroadcastKeys) break;
+      keys.emplace_back(robot, key);
+    }
+    if (!fleet_key_.empty()) keys.emplace_back(kLcmFleetKeyId, fleet_key_);
+    return keys;
+  }
+  // Keys of a message to `robot`: its own key when it has one, else as a
+  // broadcast.
+  SigningKeys KeysFor(const std::string& robot) const {
+    if (const std::string* key = auth_.KeyOf(robot)) return {{robot, *key}};
+    return BroadcastKeys();
+  }
+  template <class Message>
+  void PublishToRobot(const char* channel,
+                      const Message& m,
+                      const std::string& robot) {
+    publisher_->PublishToRobots(
+        channel, m, KeysFor(robot), options_.security.send_unsigned);
   }
 
   void PublishError(const std::string& type,
@@ -393,7 +471,7 @@ class LcmEndpointImpl {
         reply.model.version = 0;
         reply.model.n_terms = reply.model.n_quantiles = 0;
         reply.model.has_lugre = false;
-        publisher_->Publish(kLcmReplyChannel, reply);
+        PublishToRobot(kLcmReplyChannel, reply, reply.robot);
       }
       return;
     }
@@ -415,7 +493,7 @@ class LcmEndpointImpl {
     auto reject = [&](const std::string& field, const std::string& why) {
       reply.status = material_reply_v1::STATUS_ERROR;
       reply.reason = why;
-      publisher_->Publish(kLcmReplyChannel, reply);
+      PublishToRobot(kLcmReplyChannel, reply, reply.robot);
       PublishError(
           "material_query_v1", q.request_id, q.robot, 0, 0, -1, field, why);
     };
@@ -457,7 +535,7 @@ class LcmEndpointImpl {
           library_.RequireModel(q.material, reply.fingertip, "lcm:" + q.robot);
       reply.status = material_reply_v1::STATUS_KNOWN;
       reply.model = ToLcm(*model);
-      publisher_->Publish(kLcmReplyChannel, reply);
+      PublishToRobot(kLcmReplyChannel, reply, reply.robot);
     } catch (const RequestError& e) {
       if (e.status() != 404 || !e.extra().contains("identification"))
         return reject(e.field() == "id" ? "material" : e.field(), e.what());
@@ -465,7 +543,7 @@ class LcmEndpointImpl {
       reply.status = material_reply_v1::STATUS_UNKNOWN;
       reply.reason = e.what();
       reply.job_id = ident.value("job_id", std::int64_t{0});
-      publisher_->Publish(kLcmReplyChannel, reply);
+      PublishToRobot(kLcmReplyChannel, reply, reply.robot);
       PublishIdentificationRequest(reply.job_id,
                                    q.request_id,
                                    q.robot,
@@ -519,7 +597,7 @@ class LcmEndpointImpl {
         "[v_min_mm_s, v_max_mm_s]; stream the samples as stroke_chunk_v1 on " +
         kLcmStrokeChannel + " with job_id " + std::to_string(job_id) +
         " and stroke " + std::to_string(stroke);
-    publisher_->Publish(kLcmIdentRequestChannel, r);
+    PublishToRobot(kLcmIdentRequestChannel, r, r.robot);
     // v2: the same plus the LuGre pair (a plan stored before the pair
     // existed asks for none).
     identification_request_v2 r2;
@@ -562,7 +640,7 @@ class LcmEndpointImpl {
           "triangle to lugre_slow_peak_mm_s at lugre_slow_accel_mm_s2 and "
           "lugre_fast_strokes fast triangles to lugre_fast_peak_mm_s at "
           "lugre_fast_accel_mm_s2, lugre_rest_s apart, in the same stroke";
-    publisher_->Publish(kLcmIdentRequestV2Channel, r2);
+    PublishToRobot(kLcmIdentRequestV2Channel, r2, r2.robot);
   }
 
   static SpanRect PlanSpan(const json& plan) {
@@ -803,7 +881,7 @@ class LcmEndpointImpl {
     out.min_span_pct = library_.options().plan.min_span_pct;
     out.model_version = version;
     out.detail = detail;
-    publisher_->Publish(kLcmProgressChannel, out);
+    PublishToRobot(kLcmProgressChannel, out, out.robot);
   }
 
   void OnReassemblyEvent(const ReassemblyEvent& e) {
@@ -1095,6 +1173,7 @@ class LcmEndpointImpl {
   std::shared_ptr<LcmPublisher> publisher_;
   StrokeReassembler reassembler_;
   LcmAuthenticator auth_;
+  std::string fleet_key_;  // raw; empty: none
   LcmDecodeLimits decode_limits_;
   std::map<std::int64_t, JobProgress> jobs_;
   // Jobs this endpoint claimed, with the time of the last claim renewal.
@@ -1113,6 +1192,11 @@ LcmEndpoint::LcmEndpoint(FrictionLibrary& library, LcmEndpointOptions options)
 LcmEndpoint::~LcmEndpoint() = default;
 void LcmEndpoint::Start() { impl_->Start(); }
 void LcmEndpoint::Stop() { impl_->Stop(); }
+void LcmEndpoint::HandleMessage(const std::string& channel,
+                                const void* data,
+                                std::size_t size) {
+  impl_->HandleMessage(channel, data, size);
+}
 bool HaveLcmEndpoint() { return true; }
 
 }  // namespace frictiond
@@ -1132,6 +1216,7 @@ LcmEndpoint::LcmEndpoint(FrictionLibrary&, LcmEndpointOptions options) {
 LcmEndpoint::~LcmEndpoint() = default;
 void LcmEndpoint::Start() {}
 void LcmEndpoint::Stop() {}
+void LcmEndpoint::HandleMessage(const std::string&, const void*, std::size_t) {}
 bool HaveLcmEndpoint() { return false; }
 
 }  // namespace frictiond

@@ -1,5 +1,6 @@
 #include "frictiond/server/library.h"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <filesystem>
@@ -9,6 +10,7 @@
 
 #include "frictiond/estimators/stroke_csv.h"
 #include "frictiond/proto/actuator_json.h"
+#include "frictiond/server/text.h"
 
 namespace frictiond {
 
@@ -47,10 +49,11 @@ double ParseNumberParam(const std::string& name, const std::string& value) {
   auto [p, ec] = std::from_chars(b, e, x);
   if (value.empty() || ec != std::errc() || p != e) {
     throw RequestError(
-        400, name, name + " = '" + value.substr(0, 40) + "' (not a number)");
+        400, name, name + " = '" + ShownText(value) + "' (not a number)");
   }
   if (!std::isfinite(x))
-    throw RequestError(400, name, name + " = '" + value + "' (must be finite)");
+    throw RequestError(
+        400, name, name + " = '" + ShownText(value) + "' (must be finite)");
   return x;
 }
 
@@ -158,7 +161,7 @@ bool FrictionLibrary::PutMaterial(const std::string& id,
   if (!json_body.empty()) {
     try {
       body = json::parse(json_body);
-    } catch (const json::parse_error& e) {
+    } catch (const json::exception& e) {
       throw RequestError(
           400, "body", std::string("body: invalid JSON: ") + e.what());
     }
@@ -320,11 +323,42 @@ json FrictionLibrary::MakeStrokePlan(const std::string& material,
 json FrictionLibrary::RequestIdentification(const std::string& material,
                                             const std::string& fingertip,
                                             const std::string& requested_by) {
+  CheckText(requested_by, "robot", 128);
+  const json plan = MakeStrokePlan(material, fingertip);
+  {
+    // Reads must not grow the store without bound: an open job for the
+    // pair is reused, and new ones stop at the caps (the store's listing
+    // of open jobs is bounded by the same caps).
+    std::lock_guard<std::mutex> lock(request_mu_);
+    const int total_cap = std::max(options_.max_open_requests, 0);
+    bool pair_open = false;
+    int open_total = 0, open_mine = 0;
+    for (const IdentificationJob& j :
+         store_->ListJobsPage(/*open_only=*/true, 0, total_cap + 1)) {
+      ++open_total;
+      if (j.requested_by == requested_by) ++open_mine;
+      if (j.material == material && j.fingertip == fingertip) pair_open = true;
+    }
+    std::string why;
+    if (!pair_open && open_total >= total_cap) {
+      why = std::to_string(open_total) +
+            " identification requests are open (the daemon's cap); none was "
+            "recorded";
+    } else if (!pair_open &&
+               open_mine >= options_.max_open_requests_per_requester) {
+      why = "requester '" + ShownText(requested_by, 64) + "' has " +
+            std::to_string(open_mine) +
+            " open identification requests (the cap per requester); none "
+            "was recorded";
+    }
+    if (!why.empty())
+      return json{{"requested", false}, {"reason", why}, {"stroke", plan}};
+  }
   IdentificationJob job;
   job.material = material;
   job.fingertip = fingertip;
   job.state = "requested";
-  job.plan_json = MakeStrokePlan(material, fingertip).dump();
+  job.plan_json = plan.dump();
   job.requested_by = requested_by;
   job.detail = "waiting for a test stroke";
   const IdentificationJob j = store_->RequestIdentification(job);
@@ -348,14 +382,17 @@ std::shared_ptr<const CachedModel> FrictionLibrary::RequireModel(
                     {"known_material", known}};
   extra["identification"] =
       RequestIdentification(material, fingertip, requested_by);
+  const std::string outcome =
+      extra["identification"].value("requested", false)
+          ? "an identification was requested"
+          : "no identification was recorded (" +
+                extra["identification"].value("reason", std::string()) + ")";
   throw RequestError(404,
                      "id",
                      known ? "material '" + material +
                                  "' has no friction model for fingertip '" +
-                                 fingertip +
-                                 "' yet: an identification was requested"
-                           : "unknown material '" + material +
-                                 "': an identification was requested",
+                                 fingertip + "' yet: " + outcome
+                           : "unknown material '" + material + "': " + outcome,
                      extra);
 }
 
@@ -640,7 +677,7 @@ int FrictionLibrary::LoadBundledData(const std::string& dir) {
   json m;
   try {
     m = json::parse(in);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {
     throw std::runtime_error(manifest.string() + ": invalid JSON: " + e.what());
   }
   int loaded = 0;

@@ -1,6 +1,7 @@
 #include <cmath>
 
 #include "frictiond/server/routes.h"
+#include "frictiond/server/text.h"
 
 namespace frictiond {
 
@@ -22,9 +23,14 @@ std::string FingertipParam(const HttpRequest& req) {
 }
 
 std::string Requester(const HttpRequest& req) {
-  std::string who = req.QueryOr("robot", req.Header("X-Robot-Id"));
+  if (auto robot = req.Query("robot")) {
+    CheckText(*robot, "robot", 128);
+    if (!robot->empty()) return *robot;
+  }
+  std::string who = req.Header("X-Robot-Id");
+  CheckText(who, "X-Robot-Id", 128);
   if (who.empty()) who = "http:" + req.remote_addr;
-  return who.substr(0, 128);
+  return who;
 }
 
 std::shared_ptr<const CachedModel> ModelFor(FrictionLibrary& lib,
@@ -153,7 +159,7 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
     if (!req.body.empty()) {
       try {
         body = json::parse(req.body);
-      } catch (const json::parse_error& e) {
+      } catch (const json::exception& e) {
         throw RequestError(
             400, "body", std::string("body: invalid JSON: ") + e.what());
       }
@@ -170,8 +176,13 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
                                "' (allowed: name, description)");
       if (!it->is_string())
         throw RequestError(400, it.key(), it.key() + ": expected a string");
-      (it.key() == "name" ? f.name : f.description) =
-          it->get<std::string>().substr(0, 4000);
+      const std::string text = it->get<std::string>();
+      if (text.size() > 4000)  // a JSON string is valid UTF-8 already
+        throw RequestError(400,
+                           it.key(),
+                           it.key() + ": " + std::to_string(text.size()) +
+                               " bytes (at most 4000)");
+      (it.key() == "name" ? f.name : f.description) = text;
     }
     const bool created = lib.store().PutFingertip(f);
     return HttpResponse::Json(
@@ -398,10 +409,32 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
 
   // --- identification jobs
   // ----------------------------------------------------------
+  // Pages newest first: ?limit= (1..1000, default 100) and ?after= (the
+  // "next_after" of the previous page); "next_after" is null on the last.
   http.Route("GET", "/v1/identifications", [&lib](const HttpRequest& req) {
     const bool open_only = req.QueryOr("open", "0") == "1";
+    int limit = 100;
+    if (auto v = req.Query("limit")) {
+      const double x = ParseNumberParam("limit", *v);
+      if (!(x >= 1 && x <= 1000 && x == std::floor(x)))
+        throw RequestError(
+            400, "limit", "limit = " + *v + " (must be an integer in 1..1000)");
+      limit = static_cast<int>(x);
+    }
+    std::int64_t after = 0;
+    if (auto v = req.Query("after")) {
+      const double x = ParseNumberParam("after", *v);
+      if (!(x >= 1 && x < 9e15 && x == std::floor(x)))
+        throw RequestError(
+            400, "after", "after = " + *v + " (must be a positive job id)");
+      after = static_cast<std::int64_t>(x);
+    }
     json list = json::array();
-    for (const IdentificationJob& j : lib.store().ListJobs(open_only)) {
+    std::vector<IdentificationJob> page =
+        lib.store().ListJobsPage(open_only, after, limit + 1);
+    const bool more = static_cast<int>(page.size()) > limit;
+    if (more) page.resize(static_cast<std::size_t>(limit));
+    for (const IdentificationJob& j : page) {
       json plan =
           json::parse(j.plan_json.empty() ? "{}" : j.plan_json, nullptr, false);
       list.push_back({{"id", j.id},
@@ -414,7 +447,10 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
                       {"updated_at", j.updated_at},
                       {"stroke", plan}});
     }
-    return HttpResponse::Json(200, {{"identifications", list}});
+    return HttpResponse::Json(
+        200,
+        {{"identifications", list},
+         {"next_after", more ? json(page.back().id) : json(nullptr)}});
   });
 }
 

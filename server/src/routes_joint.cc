@@ -575,7 +575,7 @@ HttpResponse HandlePutRobot(FrictionLibrary& lib, const HttpRequest& req) {
   json j;
   try {
     j = json::parse(req.body);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {
     throw RequestError(
         400, "body", std::string("body is not JSON: ") + e.what());
   }

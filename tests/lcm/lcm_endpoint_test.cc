@@ -33,6 +33,7 @@ class LcmEndpointTest : public ::testing::Test {
     o.max_strokes_per_job = 2;
     // These tests check validation of the chunk fields: unsigned chunks.
     o.security.allow_unsigned = true;
+    o.security.send_unsigned = true;  // the inbox reads unsigned messages
     // A stand-in recognition hook: "IMG:<id>" is recognised as <id>,
     // "IMG-BAD" cannot be decoded, anything else is unknown.
     o.recognize = [](const std::string& image) {

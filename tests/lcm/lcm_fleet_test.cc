@@ -49,7 +49,8 @@ TEST(LcmFleetTest, RemoteVersionsAreBroadcastOncePerVersion) {
   ft::DaemonOptions oa;
   oa.db = db;
   oa.data = "none";
-  oa.lcm = lcm_url;  // A talks to the robots
+  oa.lcm = lcm_url;                         // A talks to the robots
+  oa.extra_args = {"--lcm-send-unsigned"};  // the inbox reads unsigned
   oa.log_path = dir.path() + "/a.log";
   ft::DaemonProcess a(oa);
   a.Start();

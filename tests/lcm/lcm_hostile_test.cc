@@ -146,6 +146,7 @@ class LcmHostileTest : public ::testing::Test {
     o.url = url_;
     o.security.keys = {{"robot-a", key_}};
     o.security.allow_unsigned = true;
+    o.security.send_unsigned = true;  // the inbox reads unsigned messages
     o.metrics = &metrics_;
     endpoint_ = std::make_unique<LcmEndpoint>(*library_, o);
     endpoint_->Start();

@@ -57,6 +57,7 @@ class LcmSigningTest : public ::testing::Test {
     o.max_strokes_per_job = 2;
     o.security.keys = {{"robot-a", key_a_}, {"robot-b", key_b_}};
     o.security.max_skew_s = 30;
+    o.security.send_unsigned = true;  // the inbox reads unsigned messages
     o.metrics = &metrics_;
     endpoint_ = std::make_unique<LcmEndpoint>(*library_, o);
     endpoint_->Start();

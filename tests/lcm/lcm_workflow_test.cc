@@ -140,7 +140,9 @@ class LcmWorkflowTest : public ::testing::Test {
     o.db = dir.path() + "/lib.db";
     o.data = "none";
     o.lcm = url_;
-    o.extra_args = {"--lcm-keys", keys};
+    // Signed robots read only signed messages; QueryMaterialOnce (no key)
+    // reads the unsigned ones.
+    o.extra_args = {"--lcm-keys", keys, "--lcm-send-unsigned"};
     return o;
   }
   static std::string Key() { return RandomKeyOnce(); }

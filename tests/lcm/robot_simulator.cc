@@ -19,6 +19,7 @@
 #include "frictiond/material_reply_v1.hpp"
 #include "frictiond/model_update_v1.hpp"
 #include "frictiond/proto/lcm_channels.h"
+#include "frictiond/proto/lcm_signed.h"
 #include "frictiond/stroke_chunk_v1.hpp"
 #include "frictiond/stroke_chunk_v2.hpp"
 
@@ -89,6 +90,54 @@ struct Inbox {
                const std::string&,
                const error_v1* m) {
     errors.push_back(*m);
+  }
+  // Signed mode (a robot with a key): only signed_message_v1 on the
+  // "_SIGNED" channels is read, verified with the robot's key and decoded
+  // with the bounds-checked codec; forgeries (and anything stale, replayed
+  // or undecodable) are dropped and counted; copies for other robots are
+  // skipped.
+  std::unique_ptr<LcmSignedReceiver> verifier;
+  int forgeries_dropped = 0;
+  std::vector<std::string> drop_log;
+  void Store(const material_reply_v1& m) { replies.push_back(m); }
+  void Store(const identification_request_v1& m) { requests.push_back(m); }
+  void Store(const identification_request_v2& m) { requests_v2.push_back(m); }
+  void Store(const coverage_progress_v1& m) { progress.push_back(m); }
+  void Store(const model_update_v1& m) { updates.push_back(m); }
+  template <class Message>
+  void OnSigned(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+    const std::string unsigned_channel =
+        channel.substr(0, channel.size() - std::string("_SIGNED").size());
+    Message m;
+    const LcmVerifyResult v =
+        verifier->Open(rbuf->data, rbuf->data_size, unsigned_channel, &m);
+    if (v.ok()) return Store(m);
+    if (v.failure == LcmVerifyFailure::kNotForMe) return;
+    ++forgeries_dropped;
+    drop_log.push_back(channel + ": dropped (" +
+                       LcmVerifyFailureName(v.failure) + "): " + v.detail);
+  }
+  void SubscribeSigned(lcm::LCM& lcm,
+                       const std::string& robot,
+                       const std::string& key) {
+    verifier = std::make_unique<LcmSignedReceiver>(
+        std::map<std::string, std::string>{{robot, key}});
+    lcm.subscribe(LcmSignedChannel(kLcmReplyChannel),
+                  &Inbox::OnSigned<material_reply_v1>,
+                  this);
+    lcm.subscribe(LcmSignedChannel(kLcmIdentRequestChannel),
+                  &Inbox::OnSigned<identification_request_v1>,
+                  this);
+    lcm.subscribe(LcmSignedChannel(kLcmIdentRequestV2Channel),
+                  &Inbox::OnSigned<identification_request_v2>,
+                  this);
+    lcm.subscribe(LcmSignedChannel(kLcmProgressChannel),
+                  &Inbox::OnSigned<coverage_progress_v1>,
+                  this);
+    lcm.subscribe(LcmSignedChannel(kLcmModelUpdateChannel),
+                  &Inbox::OnSigned<model_update_v1>,
+                  this);
+    lcm.subscribe(kLcmErrorChannel, &Inbox::OnError, this);
   }
   void SubscribeAll(lcm::LCM& lcm) {
     lcm.subscribe(kLcmReplyChannel, &Inbox::OnReply, this);
@@ -240,7 +289,10 @@ RobotSimResult RunRobotSimulation(const RobotSimOptions& o) {
   lcm::LCM lcm(o.url);
   if (!lcm.good()) return fail("cannot create LCM provider " + o.url);
   Inbox inbox;
-  inbox.SubscribeAll(lcm);
+  if (o.key.empty())
+    inbox.SubscribeAll(lcm);
+  else
+    inbox.SubscribeSigned(lcm, o.robot, o.key);
   // Unique per robot and material: robots sharing a name (and key) may ask
   // for different materials at once.
   const std::string request_id =
@@ -454,6 +506,8 @@ RobotSimResult RunRobotSimulation(const RobotSimOptions& o) {
                     "pair was performed";
         }
         res.ok = true;
+        res.forgeries_dropped = inbox.forgeries_dropped;
+        for (const std::string& d : inbox.drop_log) log(d);
         log("model_update version " + std::to_string(u.model.version));
         return res;
       }

@@ -24,6 +24,7 @@
 #include <cmath>
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -58,7 +59,9 @@ struct RobotSimOptions {
   /// on FRICTIOND_STROKE_V2, each send (resends too) with a fresh nonce; a
   /// duplicate (`duplicate`) repeats the signed bytes, which the daemon
   /// drops as replayed. Empty: unsigned stroke_chunk_v1 (the daemon must
-  /// allow unsigned writes).
+  /// allow unsigned writes). With a key the robot also reads only signed
+  /// messages from the daemon ("_SIGNED" channels, lcm_signed.h), verified
+  /// with this key; forgeries are dropped (RobotSimResult::forgeries_dropped).
   std::string key;
 };
 
@@ -75,7 +78,10 @@ struct RobotSimResult {
   int strokes_sent = 0;
   int chunks_sent = 0;
   int resend_requests = 0;  ///< progress messages naming missing seqs
-  int follow_ups = 0;       ///< follow-up identification requests
+  /// Signed messages that failed verification (forged, stale, replayed,
+  /// undecodable) and were dropped (robots with a key).
+  int forgeries_dropped = 0;
+  int follow_ups = 0;  ///< follow-up identification requests
   double last_span_pct = -1;
   int lugre_pairs = 0;               ///< strokes that ended with the LuGre pair
   double lugre_fn_n = std::nan("");  ///< normal force of the (last) pair [N]

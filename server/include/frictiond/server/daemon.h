@@ -24,7 +24,13 @@ struct DaemonConfig {
   std::string lcm_url = "none";  ///< LCM provider URL; "none" disables LCM
   int max_body_mb = 16;          ///< request body limit [MiB]
   int threads = 8;               ///< HTTP worker threads
-  StrokePlanOptions plan;        ///< test stroke asked of robots
+  /// HTTP deadlines and connection limits (HttpOptions): headers complete
+  /// within header_timeout_ms of a request's first byte, the whole request
+  /// within request_timeout_ms; at most max_connections open connections.
+  int header_timeout_ms = 10000;
+  int request_timeout_ms = 60000;
+  int max_connections = 512;
+  StrokePlanOptions plan;  ///< test stroke asked of robots
   /// Per-robot LCM keys: robot id -> hex key (>= 32 hex digits), from the
   /// config file's "lcm_keys" object (docs/lcm.md "Signed writes").
   std::map<std::string, std::string> lcm_keys;
@@ -40,6 +46,12 @@ struct DaemonConfig {
   /// (config key "recognition_operating_point", in [0, 1]); negative = the
   /// calibrated default (docs/recognition.md, "Operating point").
   double recognition_operating_point = -1.0;
+  /// Also publish the unsigned replies, identification requests, progress
+  /// and model updates (--lcm-send-unsigned; config "lcm_send_unsigned").
+  /// Off: robots get them only signed, on the "_SIGNED" channels. Risk when
+  /// on: any device on the multicast group can forge them (e.g. feed a
+  /// robot a friction model); docs/security_lcm.md.
+  bool lcm_send_unsigned = false;
 
   /// The LCM keys as raw bytes (lcm_keys plus lcm_keys_file).
   /// @throws std::invalid_argument naming the file or robot and the rule.
@@ -51,10 +63,15 @@ struct DaemonConfig {
   /// Secret of the operator token created on the first start (no tokens in
   /// the store); empty = generate one and print it to stdout.
   std::string bootstrap_token;
+  /// File holding the bootstrap secret (first line; --bootstrap-token-file),
+  /// so the secret need not appear on a command line. Read by Validate()
+  /// into bootstrap_token when that is empty.
+  std::string bootstrap_token_file;
 
   /// Reads a JSON config file:
   /// {"db","port","bind","data","lcm","max_body_mb","threads","open_reads",
-  /// "bootstrap_token", "plan":
+  /// "bootstrap_token", "bootstrap_token_file", "header_timeout_ms",
+  /// "request_timeout_ms", "max_connections", "plan":
   /// {"fn_min_n","fn_max_n","v_min_mm_s","v_max_mm_s","max_duration_s","min_span_pct",
   /// "lugre_pair","lugre_fn_n","lugre_slow_accel_mm_s2","lugre_slow_peak_mm_s",
   /// "lugre_fast_strokes","lugre_fast_accel_mm_s2","lugre_fast_peak_mm_s",
@@ -66,7 +83,16 @@ struct DaemonConfig {
   void LoadFile(const std::string& path);
   /// @throws std::invalid_argument naming the option, value and rule.
   void Validate() const;
+  /// The bootstrap secret: bootstrap_token, else the first line of
+  /// bootstrap_token_file ("" when neither is set).
+  /// @throws std::invalid_argument when the file cannot be read.
+  std::string BootstrapSecret() const;
 };
+
+/// A database URL fit for logs: the password of a postgresql:// URL
+/// (user:PASSWORD@ or ?password=/&password=) and of a key=value conninfo
+/// (password=...) replaced by "***". SQLite paths are returned unchanged.
+std::string RedactDbUrl(const std::string& url);
 
 /// Runs one daemon. Not copyable or movable.
 class Daemon {

@@ -80,13 +80,27 @@ struct RouteKey {
   std::string pattern;
 };
 
-/// Server options.
+/// Server options. Every limit holds per connection or request whatever
+/// the client sends (docs/security.md "HTTP").
 struct HttpOptions {
-  std::size_t max_body_bytes = 16u << 20;  ///< larger bodies get 413
-  int threads = 8;                         ///< worker threads
+  /// Larger bodies get 413, checked while reading (Content-Length, chunked
+  /// or length-less). Compressed bodies (Content-Encoding) get 415.
+  std::size_t max_body_bytes = 16u << 20;
+  int threads = 8;                    ///< worker threads
   int keep_alive_max_count = 100000;  ///< requests per kept-alive connection
-  int keep_alive_timeout_s = 5;
-  int read_timeout_s = 10;
+  int keep_alive_timeout_s = 5;       ///< idle time between requests
+  int read_timeout_s = 10;            ///< longest wait for the next bytes
+  /// From the first byte of a request to the end of its headers [ms];
+  /// later: 408 and the connection is closed.
+  int header_timeout_ms = 10000;
+  /// From the first byte of a request to the end of its body [ms].
+  int request_timeout_ms = 60000;
+  /// Request line plus headers [bytes]; more: 431.
+  std::size_t max_header_bytes = 32u << 10;
+  /// Open connections (idle, reading headers or served); more: 503.
+  int max_connections = 512;
+  /// Connections with complete headers waiting for a worker; more: 503.
+  int max_queue = 128;
 };
 
 /// Not copyable or movable.
@@ -128,7 +142,15 @@ class HttpServer {
   /// server itself).
   HttpResponse Dispatch(HttpRequest request) const;
 
+  /// Decides a request from its method, path, query and headers alone,
+  /// before its body is read: nullopt when the route exists and admits the
+  /// caller, else the answer (404, 405, 400 for invalid text, 401/403 from
+  /// the authorizer), counted in metrics like Dispatch's.
+  std::optional<HttpResponse> Admit(HttpRequest request) const;
+
  private:
+  // Dispatch (headers_only false: always an answer) and Admit.
+  std::optional<HttpResponse> Run(HttpRequest request, bool headers_only) const;
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

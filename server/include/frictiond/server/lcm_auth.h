@@ -25,6 +25,13 @@ struct LcmSecurityOptions {
   /// Accept unsigned stroke_chunk_v1 on FRICTIOND_STROKE_V1 (off by
   /// default: unsigned writes are dropped and counted as "unsigned").
   bool allow_unsigned = false;
+  /// Also publish the unsigned forms of the messages to robots (replies,
+  /// identification requests, progress, model updates). Off: they go only
+  /// signed (signed_message_v1 on "<channel>_SIGNED", lcm_signed.h), with
+  /// the robot's key, or for a robot without a key and for model updates
+  /// with every robot key and the fleet key (the keys entry "fleet").
+  /// Risk when on: anyone on the group can forge them.
+  bool send_unsigned = false;
   /// Largest |daemon clock - message utime| accepted [s].
   double max_skew_s = 30.0;
   /// Nonces remembered per robot (bounds memory). When full, the oldest is

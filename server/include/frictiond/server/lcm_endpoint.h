@@ -17,6 +17,7 @@
 /// One thread runs lcm handleTimeout in a loop; no exception leaves it.
 /// Available when built with FRICTIOND_WITH_LCM.
 
+#include <cstddef>
 #include <memory>
 #include <string>
 
@@ -73,6 +74,16 @@ class LcmEndpoint {
   void Start();
   /// Stops and joins it (any thread except the handling one; idempotent).
   void Stop();
+
+  /// Handles one message as if the LCM provider had received `size` bytes
+  /// on `channel` (FRICTIOND_QUERY_V1, _STROKE_V1 or _STROKE_V2; others are
+  /// ignored), on the calling thread, then runs due reassembly events and
+  /// drains what the endpoint published. Drives the handlers without
+  /// sockets (fuzzing, tests) with the provider "memq://". Call only while
+  /// the handling thread is not running. Never throws.
+  void HandleMessage(const std::string& channel,
+                     const void* data,
+                     std::size_t size);
 
  private:
   std::unique_ptr<internal::LcmEndpointImpl> impl_;

@@ -80,6 +80,13 @@ struct IngestOptions {
 struct LibraryOptions {
   StrokePlanOptions plan;
   std::size_t max_samples_per_upload = 5'000'000;
+  /// Reads record identification requests (docs/security.md "Reads do not
+  /// write"): at most one open job per (material, fingertip), at most
+  /// `max_open_requests_per_requester` open jobs requested by one requester
+  /// and `max_open_requests` open jobs in all. Beyond a cap the caller still
+  /// gets the stroke plan, with "requested": false and the reason.
+  int max_open_requests_per_requester = 64;
+  int max_open_requests = 4096;
 };
 
 /// Thread-safe service core. Not copyable or movable.
@@ -118,7 +125,12 @@ class FrictionLibrary {
       const std::string& fingertip,
       const std::string& requested_by);
   /// Records (or finds the open) identification job for an unknown pair and
-  /// returns the JSON the caller should act on.
+  /// returns the JSON the caller should act on: {"requested": true,
+  /// "job_id", "state", "created_at", "stroke"}, or {"requested": false,
+  /// "reason", "stroke"} when a cap of LibraryOptions is reached (nothing is
+  /// stored then).
+  /// @throws RequestError(400) when `requested_by` is not valid text
+  /// (text.h; at most 128 bytes).
   nlohmann::json RequestIdentification(const std::string& material,
                                        const std::string& fingertip,
                                        const std::string& requested_by);
@@ -211,7 +223,8 @@ class FrictionLibrary {
       cache_;  // key: material '\n' fingertip
   // Invalidated entries, served only while the store is unavailable.
   std::unordered_map<std::string, std::shared_ptr<const CachedModel>> stale_;
-  std::mutex ingest_mu_;  // serialises refits so versions follow upload order
+  std::mutex ingest_mu_;   // serialises refits so versions follow upload order
+  std::mutex request_mu_;  // serialises the caps of RequestIdentification
   std::vector<std::pair<std::string, FamilyFitter>> fitters_;
   std::mutex listeners_mu_;
   std::vector<ModelListener> listeners_;

@@ -1,0 +1,153 @@
+#pragma once
+/// @file
+/// Connection handling under the HTTP server (internal; includes httplib).
+///
+/// cpp-httplib 0.11 (Debian 12) gives each accepted connection a worker
+/// thread for its whole life and reads the request line and headers with
+/// only a per-read timeout, without bounding their total size. A client that
+/// dribbles one header byte every few seconds therefore holds a worker for
+/// as long as it likes, and a few dozen such clients stop the server.
+///
+/// GuardedServer replaces httplib's per-connection loop (it overrides
+/// Server::process_and_close_socket and calls Server::process_request):
+///  - one gate thread reads request headers of every open connection with
+///    poll(), up to `max_header_bytes`, within `header_timeout_ms` (408 or
+///    431 otherwise); idle keep-alive connections also wait there, not on a
+///    worker;
+///  - only a connection whose headers are complete is queued for a worker;
+///    the queue holds at most `max_queue` connections and at most
+///    `max_connections` are open; beyond either the client gets 503 at once;
+///  - a worker serves one request on a ConnectionStream whose reads stop at
+///    the whole-request deadline (`request_timeout_ms` from the first byte).
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstddef>
+#include <deque>
+#include <mutex>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <httplib.h>
+
+namespace frictiond::internal {
+
+using SteadyClock = std::chrono::steady_clock;
+
+/// Limits of GuardedServer (see HttpOptions for their meaning).
+struct ConnectionLimits {
+  int threads = 8;
+  int max_connections = 256;
+  int max_queue = 64;
+  std::size_t max_header_bytes = 32u << 10;
+  int header_timeout_ms = 10000;
+  int request_timeout_ms = 60000;
+  int read_timeout_ms = 10000;
+  int write_timeout_ms = 10000;
+  int keep_alive_timeout_ms = 5000;
+  int keep_alive_max_count = 100000;
+};
+
+/// One request's view of a connection: first the bytes the gate already
+/// read, then the socket, with reads bounded by the request deadline.
+class ConnectionStream : public httplib::Stream {
+ public:
+  ConnectionStream(int fd,
+                   std::string buffered,
+                   SteadyClock::time_point deadline,
+                   const ConnectionLimits& limits);
+
+  bool is_readable() const override;
+  bool is_writable() const override;
+  ssize_t read(char* ptr, size_t size) override;
+  ssize_t write(const char* ptr, size_t size) override;
+  void get_remote_ip_and_port(std::string& ip, int& port) const override;
+  void get_local_ip_and_port(std::string& ip, int& port) const override;
+  socket_t socket() const override { return fd_; }
+
+  /// Bytes read from the socket but not consumed (a pipelined request).
+  std::string TakeLeftover();
+  /// The whole-request deadline passed during a read.
+  bool timed_out() const { return timed_out_; }
+  /// A read or write failed (or timed out): the connection is unusable.
+  bool failed() const { return failed_; }
+  /// Close the connection after this response (unread body bytes remain).
+  void CloseAfterResponse() { close_after_ = true; }
+  bool close_after() const { return close_after_; }
+
+  /// The stream of the request being served on this thread, or null.
+  static ConnectionStream* Current();
+
+ private:
+  friend class CurrentStreamScope;
+  int fd_;
+  std::string buf_;
+  std::size_t pos_ = 0;
+  SteadyClock::time_point deadline_;
+  ConnectionLimits limits_;
+  bool timed_out_ = false;
+  bool failed_ = false;
+  bool close_after_ = false;
+};
+
+/// httplib::Server with the connection handling described in the file
+/// comment. Call StartWorkers() before listen_after_bind() and
+/// StopWorkers() after stop().
+class GuardedServer : public httplib::Server {
+ public:
+  explicit GuardedServer(const ConnectionLimits& limits);
+  ~GuardedServer() override;
+  GuardedServer(const GuardedServer&) = delete;
+  GuardedServer& operator=(const GuardedServer&) = delete;
+
+  void StartWorkers();
+  /// Closes every connection and joins the gate and workers (idempotent).
+  void StopWorkers();
+
+  /// Connections refused with 503 (too many open or queued), answered 408
+  /// (deadline) and 431 (headers too large), since start.
+  std::size_t refused_busy() const { return refused_busy_; }
+  std::size_t timed_out() const { return timed_out_; }
+
+ private:
+  struct Conn {
+    int fd = -1;
+    std::string buf;
+    bool idle = true;  ///< no byte of the next request yet
+    SteadyClock::time_point started;
+    SteadyClock::time_point deadline;
+    int served = 0;
+  };
+
+  bool process_and_close_socket(socket_t sock) override;
+  void GateLoop();
+  void WorkerLoop();
+  void ServeOne(Conn conn);
+  void Enqueue(Conn conn);
+  void ReturnToGate(Conn conn);
+  void CloseConn(int fd);
+  void Wake();
+
+  ConnectionLimits limits_;
+  std::atomic<bool> stopping_{false};
+  std::atomic<bool> started_{false};  ///< gate and workers running
+  std::atomic<int> open_{0};
+  std::atomic<std::size_t> refused_busy_{0};
+  std::atomic<std::size_t> timed_out_{0};
+  int wake_fd_ = -1;
+  std::thread gate_;
+  std::vector<std::thread> workers_;
+
+  std::mutex gate_mu_;
+  std::vector<Conn> gate_incoming_;  ///< new and kept-alive connections
+
+  std::mutex queue_mu_;
+  std::condition_variable queue_cv_;
+  std::deque<Conn> queue_;     ///< headers complete, waiting for a worker
+  std::set<int> serving_fds_;  ///< on a worker now (shut down on stop)
+};
+
+}  // namespace frictiond::internal
