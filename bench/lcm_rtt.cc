@@ -82,6 +82,8 @@ int Run(int rounds, const std::string& material) {
   testing::DaemonOptions options;
   options.db = dir.path() + "/lib.db";
   options.lcm = url;
+  // The unsigned reply (the signed path adds one HMAC per message).
+  options.extra_args = {"--lcm-send-unsigned"};
   testing::DaemonProcess daemon(options);
   daemon.Start();
 

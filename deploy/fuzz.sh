@@ -22,8 +22,11 @@ dir=${FRICTIOND_FUZZ_DIR:-build-fuzz}
 only=${FRICTIOND_FUZZ_ONLY:-.}
 
 echo "== fuzz: building the harnesses (clang, $dir)"
+# -O1 with line tables: quick to build, symbolized stacks on a finding.
 CC=${FRICTIOND_FUZZ_CC:-clang} CXX=${FRICTIOND_FUZZ_CXX:-clang++} \
   cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DFRICTIOND_BUILD_FUZZERS=ON \
+  "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -gline-tables-only" \
+  "-DCMAKE_C_FLAGS_RELWITHDEBINFO=-O1 -gline-tables-only" \
   -DFRICTIOND_BUILD_TESTS=OFF -DFRICTIOND_BUILD_BENCHMARKS=OFF >/dev/null
 cmake --build "$dir" -j"${FRICTIOND_JOBS:-2}" --target frictiond_fuzzers
 

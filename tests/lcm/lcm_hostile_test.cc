@@ -8,12 +8,15 @@
 // reason and answered with error_v1 naming the field; afterwards a valid
 // query is still answered, and nothing was stored.
 #include <cstdlib>
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <sstream>
 #include <string>
 
 #include <gtest/gtest.h>
+#include <sqlite3.h>
+#include <unistd.h>
 
 #include "frictiond/crypto/hmac.h"
 #include "frictiond/crypto/lcm_signing.h"
@@ -334,6 +337,70 @@ TEST_F(LcmHostileTest, OtherTypesOnAChannelAreWrongHash) {
     }
   }
   ExpectQueryAnswered("after-wrong-types");
+}
+
+// The store fails inside a handler (another process holds the SQLite
+// database's write lock, as a PostgreSQL outage would fail every write): the
+// query is answered with STATUS_ERROR, counted as "internal", and once the
+// store is back the next query is answered normally.
+TEST(LcmStoreOutageTest, StoreErrorInAHandlerIsAnsweredAndTheEndpointServesOn) {
+  const std::string url = testing::MakeTestLcmUrl(59);
+  std::string why;
+  if (!testing::CheckLcmLoopback(url, &why)) GTEST_SKIP() << why;
+  const std::filesystem::path db =
+      std::filesystem::temp_directory_path() /
+      ("frictiond_lcm_outage_" + std::to_string(::getpid()) + ".db");
+  std::filesystem::remove(db);
+  Metrics metrics;
+  {
+    FrictionLibrary library(OpenStore(db.string()));
+    LcmEndpointOptions o;
+    o.url = url;
+    o.security.send_unsigned = true;
+    o.metrics = &metrics;
+    LcmEndpoint endpoint(library, o);
+    endpoint.Start();
+    LcmInbox inbox(url);
+    ASSERT_TRUE(inbox.good());
+    // Take the write lock from another connection.
+    sqlite3* other = nullptr;
+    ASSERT_EQ(sqlite3_open(db.string().c_str(), &other), SQLITE_OK);
+    ASSERT_EQ(sqlite3_exec(other, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr),
+              SQLITE_OK);
+    auto query = [&](const std::string& id, const std::string& material) {
+      material_query_v1 q{};
+      q.request_id = id;
+      q.robot = "robot-a";
+      q.material = material;
+      q.fingertip = "";
+      q.image_size = 0;
+      inbox.lcm().publish(kLcmQueryChannel, &q);
+      material_reply_v1 out{};
+      out.status = -1;
+      inbox.WaitFor(
+          [&] {
+            for (const auto& r : inbox.replies)
+              if (r.request_id == id) {
+                out = r;
+                return true;
+              }
+            return false;
+          },
+          20.0);
+      return out;
+    };
+    const material_reply_v1 during = query("during-outage", "cork");
+    EXPECT_EQ(during.status, +material_reply_v1::STATUS_ERROR) << during.reason;
+    EXPECT_FALSE(during.reason.empty());
+    sqlite3_exec(other, "ROLLBACK", nullptr, nullptr, nullptr);
+    sqlite3_close(other);
+    const material_reply_v1 after = query("after-outage", "cork");
+    EXPECT_EQ(after.status, +material_reply_v1::STATUS_UNKNOWN) << after.reason;
+    endpoint.Stop();
+  }
+  std::filesystem::remove(db);
+  std::filesystem::remove(db.string() + "-wal");
+  std::filesystem::remove(db.string() + "-shm");
 }
 
 }  // namespace

@@ -10,6 +10,8 @@
 // LuGre truth must get a model that does not match the first truth, and an
 // old robot (identification_request_v1, no pair) a model without LuGre. A
 // last test restarts the daemon in the middle of a job.
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <fstream>
 #include <iostream>
@@ -20,11 +22,14 @@
 // defines a macro _res that breaks Eigen's product kernels.
 #include <Eigen/Dense>
 #include <gtest/gtest.h>
+#include <lcm/lcm-cpp.hpp>
 #include <nlohmann/json.hpp>
 
 #include "frictiond/crypto/hmac.h"
 #include "frictiond/estimators/lugre.h"
 #include "frictiond/material_reply_v1.hpp"
+#include "frictiond/proto/lcm_channels.h"
+#include "frictiond/proto/lcm_signed.h"
 #include "frictiond/proto/lugre_json.h"
 #include "frictiond/storage/store.h"
 #include "frictiond/testing/daemon_process.h"
@@ -167,8 +172,45 @@ TEST_F(LcmWorkflowTest, UnknownMaterialIsIdentifiedFromASimulatedStroke) {
   o.hold_back = true;
   o.narrow_first_stroke = true;
   o.key = Key();
+  // An attacker on the group forges, every 20 ms, a "known" reply to the
+  // robot's query (a made-up model) and a model update, under the robot's
+  // name but without its key: the robot must drop them all.
+  std::atomic<bool> forging{true};
+  std::thread forger([&] {
+    lcm::LCM lcm(url_);
+    const std::string fake_key = RandomBytes(32);
+    material_reply_v1 reply{};
+    reply.request_id = (o.robot + "-" + o.material) + "-q1";
+    reply.robot = o.robot;
+    reply.material = o.material;
+    reply.fingertip = "default";
+    reply.status = material_reply_v1::STATUS_KNOWN;
+    reply.model.material = o.material;
+    reply.model.version = 7;
+    reply.model.n_terms = reply.model.n_quantiles = 0;
+    reply.model.mu_coulomb = 1.5;
+    model_update_v1 update{};
+    update.reason = "upload";
+    update.model = reply.model;
+    while (forging) {
+      for (const auto& [channel, bytes] :
+           {std::pair<const char*, std::string>{kLcmReplyChannel,
+                                                EncodeLcm(reply)},
+            {kLcmModelUpdateChannel, EncodeLcm(update)}}) {
+        const std::string forged =
+            EncodeLcm(SignLcmPayload(bytes, channel, o.robot, fake_key));
+        lcm.publish(LcmSignedChannel(channel),
+                    forged.data(),
+                    static_cast<unsigned>(forged.size()));
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  });
   const ft::RobotSimResult r = ft::RunRobotSimulation(o);
+  forging = false;
+  forger.join();
   ASSERT_TRUE(r.ok) << r.why << "\n" << JoinLog(r) << daemon.ReadLog();
+  EXPECT_GT(r.forgeries_dropped, 0) << JoinLog(r);
   EXPECT_EQ(r.reply_status, +material_reply_v1::STATUS_UNKNOWN);
   EXPECT_EQ(r.strokes_sent, 2) << JoinLog(r);
   EXPECT_EQ(r.follow_ups, 1) << JoinLog(r);

@@ -114,8 +114,9 @@ struct Inbox {
     if (v.ok()) return Store(m);
     if (v.failure == LcmVerifyFailure::kNotForMe) return;
     ++forgeries_dropped;
-    drop_log.push_back(channel + ": dropped (" +
-                       LcmVerifyFailureName(v.failure) + "): " + v.detail);
+    if (drop_log.size() < 10)  // the first few, for the log
+      drop_log.push_back(channel + ": dropped (" +
+                         LcmVerifyFailureName(v.failure) + "): " + v.detail);
   }
   void SubscribeSigned(lcm::LCM& lcm,
                        const std::string& robot,
