@@ -51,6 +51,7 @@ void FrictionAdapter::TagGeom(int geom, const StochasticFrictionModel& model) {
 void FrictionAdapter::TagGeom(const mjModel* m,
                               const std::string& name,
                               const StochasticFrictionModel& model) {
+  if (!m) throw std::invalid_argument("m: no MuJoCo model");
   const int id = mj_name2id(m, mjOBJ_GEOM, name.c_str());
   if (id < 0) throw std::invalid_argument("geom: no geom named '" + name + "'");
   TagGeom(id, model);
