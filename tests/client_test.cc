@@ -304,14 +304,50 @@ TEST_F(ClientTest, CliFitPredictGrip) {
   r = Friction("predict cl-cli --fn-n 2");  // --v-mm-s is required
   EXPECT_NE(r.exit_code, 0) << r.out;
 
-  r = Friction("grip cl-cli --load-n 1 --risk 0.001");
+  r = Friction("grip cl-cli --load-n 1 --risk 0.01");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const json grip = json::parse(r.out, nullptr, false);
   ASSERT_FALSE(grip.is_discarded()) << r.out;
   const double fn_grip = grip["fn_n"].get<double>();
   const json server_grip =
-      client.GetJson("/v1/materials/cl-cli/grip-force?load_n=1&risk=0.001");
+      client.GetJson("/v1/materials/cl-cli/grip-force?load_n=1&risk=0.01");
   EXPECT_NEAR(fn_grip, server_grip["fn_n"].get<double>(), 1e-6 * fn_grip);
+  // A hold of 10 ms at rest (4 samples at 300 Hz): the CLI evaluates
+  // locally what the daemon serves, and a hold needs more force than an
+  // instant at the same risk.
+  r = Friction("grip cl-cli --load-n 1 --risk 0.05 --hold-s 0.01 --v-mm-s 0");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const double fn_hold = json::parse(r.out)["fn_n"].get<double>();
+  const json server_hold = client.GetJson(
+      "/v1/materials/cl-cli/"
+      "grip-force?load_n=1&risk=0.05&hold_s=0.01&v_mm_s=0");
+  EXPECT_NEAR(fn_hold, server_hold["fn_n"].get<double>(), 1e-6 * fn_hold);
+  EXPECT_EQ(server_hold["hold_samples"].get<int>(), 4);
+  const json server_instant =
+      client.GetJson("/v1/materials/cl-cli/grip-force?load_n=1&risk=0.05");
+  EXPECT_GT(fn_hold, server_instant["fn_n"].get<double>());
+  // The simulator's eps is white at 300 Hz: a 1 s hold is 301 independent
+  // draws, so no risk below about 1 - (1 - p_min)^301 is supported.
+  r = Friction("grip cl-cli --load-n 1 --risk 0.01 --hold-s 1");
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.err.find("min_supported_risk"), std::string::npos) << r.err;
+  // A risk below what 32 strokes support is refused alike on both routes,
+  // naming the smallest supported risk (no silent clamp).
+  r = Friction("grip cl-cli --load-n 1 --risk 0.001");
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.err.find("min_supported_risk"), std::string::npos) << r.err;
+  try {
+    client.GetJson("/v1/materials/cl-cli/grip-force?load_n=1&risk=0.001");
+    ADD_FAILURE() << "risk 0.001 was served";
+  } catch (const ClientError& e) {
+    EXPECT_EQ(e.status(), 422);
+    ASSERT_TRUE(e.body().contains("min_supported_risk")) << e.body();
+    const double min_risk = e.body()["min_supported_risk"].get<double>();
+    EXPECT_GT(min_risk, 0.001);
+    EXPECT_NE(r.err.find(std::to_string(min_risk).substr(0, 6)),
+              std::string::npos)
+        << r.err;
+  }
   // A riskier grip needs less force.
   r = Friction("grip cl-cli --load-n 1 --risk 0.2");
   ASSERT_EQ(r.exit_code, 0) << r.err;

@@ -138,7 +138,20 @@ TEST_F(ExportHttpTest, BundledMaterialInEveryFormatRoundTrips) {
   const StochasticFrictionModel m = Model(kBundled);
   const double fn = m.inputs.at("fn_n").mean;
   const double v = m.inputs.at("v_mm_s").mean;
-  for (double risk : {0.001, 0.05}) {
+  // Below the smallest risk the bundled data support (about 120 effectively
+  // independent samples): 422 naming it, as on the grip-force route.
+  {
+    auto res = Export(kBundled, "risk=0.001&format=mjcf");
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 422) << res->body;
+    const json body = json::parse(res->body, nullptr, false);
+    ASSERT_TRUE(body.contains("min_supported_risk")) << res->body;
+    EXPECT_NEAR(body["min_supported_risk"].get<double>(),
+                CalcMinSupportedRisk(m, 0.0),
+                1e-12);
+    EXPECT_EQ(body["field"], "risk");
+  }
+  for (double risk : {0.01, 0.05}) {
     const double want = Expected(m, risk, fn, v);
     const std::string q = "risk=" + std::to_string(risk) + "&format=";
     std::printf(

@@ -261,8 +261,15 @@ void RegisterCoreCommands(CLI::App& app, Globals& g) {
     auto* cmd = app.add_subcommand(
         "grip", "grip force holding a load at a slip risk (paper 000, IV-A)");
     static std::string id;
-    static double load = 0, risk = 0.001;
+    static double load = 0, risk = 0.001, hold_s = 0, v_mm_s = 0;
     cmd->add_option("ID", id, "material id")->required();
+    cmd->add_option("--hold-s",
+                    hold_s,
+                    "seconds the grasp is held; risk is the probability of "
+                    "any slip during the hold (default 0: one instant)");
+    cmd->add_option("--v-mm-s",
+                    v_mm_s,
+                    "sliding speed of the grasp [mm/s] (default 0: at rest)");
     cmd->add_option("--load-n", load, "tangential load to hold [N]")
         ->required();
     cmd->add_option(
@@ -275,13 +282,34 @@ void RegisterCoreCommands(CLI::App& app, Globals& g) {
         const ModelSet m = c.FetchModel(id);
         if (!m.stochastic)
           throw ClientError(200, "model has no stochastic family");
-        const GripForce gf = CalcGripForce(*m.stochastic, load, risk);
+        GripForceOptions options;
+        options.hold_s = hold_s;
+        options.v_mm_s = v_mm_s;
+        const GripForce gf = CalcGripForce(*m.stochastic, load, risk, options);
+        if (gf.status == GripForceStatus::kUnsupportedRisk)
+          throw ClientError(422,
+                            gf.why,
+                            json{{"error", "risk below what the data support"},
+                                 {"detail", gf.why},
+                                 {"field", "risk"},
+                                 {"min_supported_risk", gf.min_supported_risk},
+                                 {"hold_s", hold_s}});
         if (!gf.attainable)
           throw ClientError(422, "no grip force holds the load: " + gf.why);
+        const double half = 1.959963984540054 * gf.fn_n_sd;
         std::cout << json{{"material", id},
                           {"version", m.version},
                           {"fn_n", gf.fn_n},
+                          {"fn_n_sd", gf.fn_n_sd},
+                          {"fn_n_interval95", {gf.fn_n - half, gf.fn_n + half}},
                           {"mu_used", gf.mu_used},
+                          {"load_n", load},
+                          {"risk", risk},
+                          {"hold_s", hold_s},
+                          {"v_mm_s", v_mm_s},
+                          {"instant_risk", gf.instant_risk},
+                          {"hold_samples", gf.hold_samples},
+                          {"min_supported_risk", gf.min_supported_risk},
                           {"extrapolated", gf.extrapolated}}
                          .dump(2)
                   << "\n";

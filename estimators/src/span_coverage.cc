@@ -228,4 +228,40 @@ SpanCoverage CalcSpanCoverage(const std::vector<double>& fn_n,
   return out;
 }
 
+HullSpanCoverage CalcHullSpanCoverage(
+    const std::vector<double>& fn_n,
+    const std::vector<double>& v_mm_s,
+    const std::vector<double>& material_fn_n,
+    const std::vector<double>& material_v_mm_s) {
+  if (fn_n.size() != v_mm_s.size())
+    throw std::invalid_argument("fn_n and v_mm_s differ in length (" +
+                                std::to_string(fn_n.size()) + " vs " +
+                                std::to_string(v_mm_s.size()) + ")");
+  if (material_fn_n.size() != material_v_mm_s.size())
+    throw std::invalid_argument(
+        "material_fn_n and material_v_mm_s differ in length (" +
+        std::to_string(material_fn_n.size()) + " vs " +
+        std::to_string(material_v_mm_s.size()) + ")");
+  std::vector<std::pair<double, double>> subset, all;
+  subset.reserve(fn_n.size());
+  all.reserve(fn_n.size() + material_fn_n.size());
+  for (std::size_t i = 0; i < fn_n.size(); ++i)
+    if (std::isfinite(fn_n[i]) && std::isfinite(v_mm_s[i]))
+      subset.emplace_back(fn_n[i], v_mm_s[i]);
+  all = subset;
+  for (std::size_t i = 0; i < material_fn_n.size(); ++i)
+    if (std::isfinite(material_fn_n[i]) && std::isfinite(material_v_mm_s[i]))
+      all.emplace_back(material_fn_n[i], material_v_mm_s[i]);
+  HullSpanCoverage out;
+  out.samples = static_cast<int>(subset.size());
+  out.material_samples = static_cast<int>(all.size());
+  out.hull_area = CalcConvexHullArea(std::move(subset));
+  out.material_hull_area = CalcConvexHullArea(std::move(all));
+  if (out.material_hull_area > 0)
+    out.span_pct =
+        std::clamp(100.0 * out.hull_area / out.material_hull_area, 0.0, 100.0);
+  out.reliable = out.span_pct >= 50.0;
+  return out;
+}
+
 }  // namespace frictiond

@@ -419,6 +419,35 @@ StochasticFit FitStochasticModel(const StrokeData& input,
     fit.why = "Fn-only model: " + why_fn;
     return fit;
   }
+  // eps's time correlation (eps_time.h) from eq. (1)'s residuals: episodes
+  // are runs of consecutive fit rows within a stroke without a time gap.
+  {
+    const Eigen::MatrixXd X = BuildDesign(data, m.mu.terms, rows);
+    std::vector<double> residuals(rows.size());
+    std::vector<int> episode(rows.size());
+    std::vector<double> steps;
+    steps.reserve(rows.size());
+    for (std::size_t k = 1; k < rows.size(); ++k) {
+      if (rows[k] == rows[k - 1] + 1 &&
+          data.stroke[rows[k]] == data.stroke[rows[k - 1]])
+        steps.push_back(data.t_s[rows[k]] - data.t_s[rows[k - 1]]);
+    }
+    double dt = 0.0;
+    if (!steps.empty()) dt = SelectQuantiles(&steps, {0.5})[0];
+    int id = 0;
+    for (std::size_t k = 0; k < rows.size(); ++k) {
+      residuals[k] =
+          mu[rows[k]] - X.row(static_cast<Eigen::Index>(k)).dot(m.mu.beta);
+      if (k > 0) {
+        const bool same = rows[k] == rows[k - 1] + 1 &&
+                          data.stroke[rows[k]] == data.stroke[rows[k - 1]] &&
+                          data.t_s[rows[k]] - data.t_s[rows[k - 1]] <= 1.5 * dt;
+        if (!same) ++id;
+      }
+      episode[k] = id;
+    }
+    m.eps_time = FitEpsTimeModel(residuals, episode, dt);
+  }
   // Sigmoid likelihood on all samples within the exclusion bounds.
   m.likelihood =
       FitSlipLikelihood(ratio, slip, options.never_level, options.always_level);
@@ -536,60 +565,6 @@ double CalcSlipLikelihood(const StochasticFrictionModel& model,
     return 1.0 / (1.0 + std::exp(-z));
   }
   return CalcEpsCdf(model.mu_fn_only, r - FnOnlyMean(model.mu_fn_only, fn_n));
-}
-
-GripForce CalcGripForce(const StochasticFrictionModel& model,
-                        double load_n,
-                        double risk) {
-  if (!(load_n > 0) || !std::isfinite(load_n))
-    throw std::invalid_argument("load_n = " + std::to_string(load_n) +
-                                " (must be finite and > 0)");
-  if (!(risk > 0 && risk < 1))
-    throw std::invalid_argument("risk = " + std::to_string(risk) +
-                                " (must be in (0, 1))");
-  GripForce g;
-  const RegressionModel& m = model.mu_fn_only;
-  const int k0 = m.FindTerm("intercept");
-  const int k2 = m.FindTerm("fn_n");
-  const double b0 = k0 >= 0 ? m.beta(k0) : 0.0;
-  const double b2 = k2 >= 0 ? m.beta(k2) : 0.0;
-  const double c =
-      b0 + CalcEpsQuantile(m, risk);  // risk-quantile of mu at Fn = 0
-  // Solve b2 Fn^2 + c Fn - load = 0 for the smallest positive Fn.
-  double fn = 0.0;
-  if (std::fabs(b2) < 1e-12) {
-    if (!(c > 0)) {
-      g.why = "the " + std::to_string(risk) + " quantile of mu is " +
-              std::to_string(c) + " (<= 0): no grip holds";
-      return g;
-    }
-    fn = load_n / c;
-  } else {
-    const double disc = c * c + 4 * b2 * load_n;
-    if (disc < 0) {
-      g.why = "mu falls with Fn too fast: Fn*mu(Fn) peaks at " +
-              std::to_string(-c * c / (4 * b2)) + " N, below the load";
-      return g;
-    }
-    const double s = std::sqrt(disc);
-    const double r1 = (-c + s) / (2 * b2);
-    const double r2 = (-c - s) / (2 * b2);
-    fn = std::numeric_limits<double>::infinity();
-    for (double r : {r1, r2}) {
-      if (r > 0 && r < fn) fn = r;
-    }
-    if (!std::isfinite(fn)) {
-      g.why = "no positive normal force holds the load at this risk";
-      return g;
-    }
-  }
-  g.attainable = true;
-  g.fn_n = fn;
-  g.mu_used = load_n / fn;
-  auto it = model.inputs.find("fn_n");
-  if (it != model.inputs.end())
-    g.extrapolated = fn < it->second.min || fn > it->second.max;
-  return g;
 }
 
 }  // namespace frictiond

@@ -30,6 +30,8 @@ int g_eigen_assert_failures = 0;
 
 #include <gtest/gtest.h>
 
+#include "frictiond/estimators/stats.h"
+
 #include "jacobian_tester.h"
 
 namespace frictiond {
@@ -161,19 +163,38 @@ INSTANTIATE_TEST_SUITE_P(
 
 TEST(QuasiStaticFitTest, StandardErrorsCoverTheTruthOverSeeds) {
   int covered = 0;
-  const int seeds = 20;
+  const int seeds = 400;
+  double sum_z = 0, sum_z2 = 0;
   for (int seed = 1; seed <= seeds; ++seed) {
     const LuGreFitResult r =
         FitLuGreQuasiStatic(SlowStroke(seed), kFarQuasiStatic);
     ASSERT_EQ(r.status, LuGreFitStatus::kConverged)
         << "seed " << seed << ": " << r.why;
-    covered +=
-        std::abs(r.theta[0] - 0.9) <= 2 * std::sqrt(r.P_theta(0, 0)) ? 1 : 0;
+    const double z = (r.theta[0] - 0.9) / std::sqrt(r.P_theta(0, 0));
+    sum_z += z;
+    sum_z2 += z * z;
+    covered += std::abs(z) <= 2 ? 1 : 0;
   }
   std::cout << "mu_s within 2 std in " << covered << " of " << seeds
-            << " seeds\n";
-  // 95% nominal; the small lag bias of the finite 2 mm/s^2 ramp costs some.
-  EXPECT_GE(covered, 15);
+            << " seeds; z mean " << sum_z / seeds << ", z rms "
+            << std::sqrt(sum_z2 / seeds) << "\n";
+  // The standard error is right: the z-scores' spread is 1 (400 seeds: its
+  // 99 % sampling interval is about 1 +- 0.09; measured 1.00). But the
+  // finite 2 mm/s^2 ramp lags, biasing mu_s low by about 0.8 standard
+  // errors (measured z mean -0.79, sampling sd 0.05), so the nominal 95.4 %
+  // 2-sigma interval covers about 88 % (measured 354 of 400): stated here
+  // rather than hidden behind a loose count.
+  const double mean_z = sum_z / seeds;
+  const double sd_z = std::sqrt(sum_z2 / seeds - mean_z * mean_z);
+  EXPECT_NEAR(sd_z, 1.0, 0.09);
+  EXPECT_NEAR(mean_z, -0.79, 0.15);
+  // Coverage predicted from N(mean_z, sd_z), within its 99 % binomial
+  // interval (+- 2.6 sd of the count).
+  const double p_cover =
+      NormalCdf((2 - mean_z) / sd_z) - NormalCdf((-2 - mean_z) / sd_z);
+  EXPECT_NEAR(covered,
+              p_cover * seeds,
+              2.6 * std::sqrt(p_cover * (1 - p_cover) * seeds));
 }
 
 TEST(QuasiStaticFitTest, NullCaseWithoutStribeckFindsNone) {

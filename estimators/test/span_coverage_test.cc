@@ -187,5 +187,45 @@ TEST(SpanCoverage, RejectsBadInput) {
                std::invalid_argument);
 }
 
+// Paper 000 III-C-2: coverage relative to the hull of all of the
+// material's data, not to the plan's rectangle.
+TEST(HullSpanCoverage, IsRelativeToTheMaterialsHull) {
+  // The material's data: a triangle (0,0), (4,0), (0,80) of area 160.
+  const std::vector<double> all_fn = {0, 4, 0, 1};
+  const std::vector<double> all_v = {0, 0, 80, 10};
+  // A stroke over the square (0,0)-(2,40) inside it: area 80 = 50 %.
+  const std::vector<double> fn = {0, 2, 2, 0};
+  const std::vector<double> v = {0, 0, 40, 40};
+  const HullSpanCoverage c = CalcHullSpanCoverage(fn, v, all_fn, all_v);
+  EXPECT_NEAR(c.hull_area, 80.0, 1e-12);
+  EXPECT_NEAR(c.material_hull_area, 160.0, 1e-12);
+  EXPECT_NEAR(c.span_pct, 50.0, 1e-12);
+  EXPECT_TRUE(c.reliable);  // the 50 % rule, on the paper's reference
+  EXPECT_EQ(c.samples, 4);
+  EXPECT_EQ(c.material_samples, 8);
+  // The same stroke against the plan's rectangle gives another number: the
+  // two references differ (the rectangle stays what the robot is asked).
+  const SpanRect rect{0.0, 4.0, 0.0, 80.0};
+  EXPECT_NEAR(CalcSpanCoverage(fn, v, rect).span_pct, 25.0, 1e-12);
+  // A stroke reaching beyond the material's old data enlarges the
+  // reference (its points are part of the material's data): (0,0)-(8,40)
+  // over the union hull (0,0),(8,0),(8,40),(0,80): 320 / 480.
+  const HullSpanCoverage wide =
+      CalcHullSpanCoverage({0, 8, 8, 0}, {0, 0, 40, 40}, all_fn, all_v);
+  EXPECT_NEAR(wide.span_pct, 100.0 * 320.0 / 480.0, 1e-12);
+  EXPECT_TRUE(wide.reliable);
+  // A thin stroke is not reliable; non-finite points are ignored.
+  const HullSpanCoverage thin =
+      CalcHullSpanCoverage({0, 1, 1, NAN}, {0, 0, 10, 5}, all_fn, all_v);
+  EXPECT_NEAR(thin.span_pct, 100.0 * 5.0 / 160.0, 1e-12);
+  EXPECT_FALSE(thin.reliable);
+  EXPECT_EQ(thin.samples, 3);
+  // No material area: 0 %, not a division by zero.
+  EXPECT_EQ(CalcHullSpanCoverage({1}, {1}, {1, 2}, {1, 2}).span_pct, 0.0);
+  EXPECT_THROW(CalcHullSpanCoverage({1, 2}, {1}, {}, {}),
+               std::invalid_argument);
+  EXPECT_THROW(CalcHullSpanCoverage({}, {}, {1}, {}), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace frictiond

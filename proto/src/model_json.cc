@@ -1,5 +1,7 @@
 #include "frictiond/proto/model_json.h"
 
+#include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 namespace frictiond {
@@ -175,6 +177,20 @@ json StochasticModelToJson(const StochasticFrictionModel& model) {
                     {"max_fn_n", Finite(o.max_fn_n)},
                     {"max_v_mm_s", Finite(o.max_v_mm_s)},
                     {"gap_factor", o.gap_factor}};
+  const EpsTimeModel& t = model.eps_time;
+  j["eps_time"] = {{"valid", t.valid},
+                   {"why", t.why},
+                   {"model", "gaussian_copula_ar1_plus_episode_offset"},
+                   {"dt_s", t.dt_s},
+                   {"phi", t.phi},
+                   {"corr_time_s", t.corr_time_s},
+                   {"offset_fraction", t.offset_fraction},
+                   {"episodes", t.episodes},
+                   {"samples", t.samples},
+                   {"effective_samples", t.effective_samples},
+                   {"min_instant_risk", t.min_instant_risk},
+                   {"tail_xi", t.tail_xi},
+                   {"tail_scale", t.tail_scale}};
   return j;
 }
 
@@ -220,6 +236,41 @@ StochasticFrictionModel StochasticModelFromJson(const json& j) {
         GetNumberOr(o, "max_v_mm_s", m.labelling.max_v_mm_s);
     m.labelling.gap_factor =
         GetNumberOr(o, "gap_factor", m.labelling.gap_factor);
+  }
+  if (j.contains("eps_time") && j["eps_time"].is_object()) {
+    // Hostile input: anything out of range leaves the time model invalid
+    // (hold_s > 0 is then refused) rather than feeding the quadrature.
+    const json& t = j["eps_time"];
+    EpsTimeModel& e = m.eps_time;
+    e.why = t.contains("why") && t["why"].is_string()
+                ? t["why"].get<std::string>().substr(0, 512)
+                : "";
+    e.dt_s = GetNumberOr(t, "dt_s", 0.0);
+    e.phi = GetNumberOr(t, "phi", 0.0);
+    e.corr_time_s = GetNumberOr(t, "corr_time_s", 0.0);
+    e.offset_fraction = GetNumberOr(t, "offset_fraction", 0.0);
+    e.episodes =
+        static_cast<int>(std::clamp(GetNumberOr(t, "episodes", 0.0), 0.0, 2e9));
+    e.samples =
+        static_cast<int>(std::clamp(GetNumberOr(t, "samples", 0.0), 0.0, 2e9));
+    e.effective_samples = GetNumberOr(t, "effective_samples", 0.0);
+    e.min_instant_risk = GetNumberOr(t, "min_instant_risk", 1.0);
+    e.tail_xi = GetNumberOr(t, "tail_xi", 0.0);
+    e.tail_scale = GetNumberOr(t, "tail_scale", 0.0);
+    if (!(e.tail_xi >= -0.5 && e.tail_xi <= 1 && e.tail_scale >= 0 &&
+          std::isfinite(e.tail_scale)))
+      e.tail_xi = e.tail_scale = 0.0;  // no fitted tail: exponential
+    const bool sane = e.dt_s >= 1e-4 && e.dt_s < 3600 && e.phi >= 0 &&
+                      e.phi <= 0.98 && e.offset_fraction >= 0 &&
+                      e.offset_fraction <= 1 && e.min_instant_risk > 0 &&
+                      e.min_instant_risk < 1;
+    const bool stored_valid = t.contains("valid") && t["valid"].is_boolean() &&
+                              t["valid"].get<bool>();
+    e.valid = stored_valid && sane;
+    if (stored_valid && !sane)
+      e.why =
+          "stored eps_time out of range (dt_s, phi, offset_fraction or "
+          "min_instant_risk)";
   }
   return m;
 }

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <map>
 #include <optional>
 #include <string>
 #include <utility>
@@ -171,6 +172,32 @@ HttpResponse HandleSamples(FrictionLibrary& lib, const HttpRequest& req) {
     all_v.push_back(s);
   }
   const SpanCoverage cov = CalcSpanCoverage(all_fn, all_v, plan_rect);
+  // Paper 000 III-C-2: each stroke's hull against the hull of all of the
+  // material's slipping samples (the 50 % rule applies to this; the plan's
+  // rectangle above stays what the robot is asked to sweep). Newest 1000
+  // strokes at most.
+  json per_stroke = json::array();
+  if (has_stroke) {
+    std::map<int, std::pair<std::vector<double>, std::vector<double>>> by;
+    for (std::size_t i : slip) {
+      auto& [sf, sv] = by[data.stroke[i]];
+      sf.push_back(data.fn_n[i]);
+      sv.push_back(data.v_mm_s[i]);
+    }
+    std::size_t skip = by.size() > 1000 ? by.size() - 1000 : 0;
+    for (const auto& [sid, xy] : by) {
+      if (skip > 0) {
+        --skip;
+        continue;
+      }
+      const HullSpanCoverage h =
+          CalcHullSpanCoverage(xy.first, xy.second, all_fn, all_v);
+      per_stroke.push_back({{"stroke", sid},
+                            {"span_pct", h.span_pct},
+                            {"reliable", h.reliable},
+                            {"samples", h.samples}});
+    }
+  }
   json body = {{"material", id},
                {"fingertip", fingertip},
                {"version", model->set.version},
@@ -190,7 +217,9 @@ HttpResponse HandleSamples(FrictionLibrary& lib, const HttpRequest& req) {
                   {{"fn_n", {plan.fn_min_n, plan.fn_max_n}},
                    {"v_mm_s", {plan.v_min_mm_s, plan.v_max_mm_s}}}},
                  {"span_pct", cov.span_pct},
-                 {"min_span_pct", plan.min_span_pct}}}};
+                 {"min_span_pct", plan.min_span_pct},
+                 {"material_hull_area", CalcConvexHullArea(points)},
+                 {"per_stroke", per_stroke}}}};
   return HttpResponse::Json(200, body);
 }
 

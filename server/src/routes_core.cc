@@ -343,8 +343,33 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
               400,
               "risk",
               "risk = " + std::to_string(risk) + " (must be in (0, 1))");
+        // hold_s (default 0 = one instant) and v_mm_s (default 0 = at
+        // rest): CONTRACT.md; grip_force.h for the risk's meaning.
+        GripForceOptions options;
+        if (req.Query("hold_s")) options.hold_s = req.RequireNumber("hold_s");
+        if (req.Query("v_mm_s")) options.v_mm_s = req.RequireNumber("v_mm_s");
+        if (!(options.hold_s >= 0 && options.hold_s <= 3600))
+          throw RequestError(400,
+                             "hold_s",
+                             "hold_s = " + std::to_string(options.hold_s) +
+                                 " (must be in [0, 3600] s)");
+        if (!(options.v_mm_s >= 0) || !std::isfinite(options.v_mm_s))
+          throw RequestError(400,
+                             "v_mm_s",
+                             "v_mm_s = " + std::to_string(options.v_mm_s) +
+                                 " (must be finite and >= 0)");
         auto model = ModelFor(lib, req);
-        const GripForce g = CalcGripForce(Stochastic(*model), load, risk);
+        const GripForce g =
+            CalcGripForce(Stochastic(*model), load, risk, options);
+        if (g.status == GripForceStatus::kUnsupportedRisk) {
+          throw RequestError(422,
+                             "risk",
+                             g.why,
+                             {{"min_supported_risk", g.min_supported_risk},
+                              {"hold_s", options.hold_s}});
+        }
+        if (g.status == GripForceStatus::kNoTimeModel)
+          throw RequestError(422, "hold_s", g.why);
         if (!g.attainable) {
           throw RequestError(
               422,
@@ -352,14 +377,23 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
               "no grip force holds load_n = " + std::to_string(load) +
                   " N at risk " + std::to_string(risk) + ": " + g.why);
         }
-        return HttpResponse::Json(200,
-                                  {{"material", model->set.material},
-                                   {"version", model->set.version},
-                                   {"fn_n", g.fn_n},
-                                   {"mu_used", g.mu_used},
-                                   {"load_n", load},
-                                   {"risk", risk},
-                                   {"extrapolated", g.extrapolated}});
+        const double half = 1.959963984540054 * g.fn_n_sd;
+        return HttpResponse::Json(
+            200,
+            {{"material", model->set.material},
+             {"version", model->set.version},
+             {"fn_n", g.fn_n},
+             {"fn_n_sd", g.fn_n_sd},
+             {"fn_n_interval95", {g.fn_n - half, g.fn_n + half}},
+             {"mu_used", g.mu_used},
+             {"load_n", load},
+             {"risk", risk},
+             {"hold_s", options.hold_s},
+             {"v_mm_s", options.v_mm_s},
+             {"instant_risk", g.instant_risk},
+             {"hold_samples", g.hold_samples},
+             {"min_supported_risk", g.min_supported_risk},
+             {"extrapolated", g.extrapolated}});
       });
 
   // --- identification jobs

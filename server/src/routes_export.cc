@@ -58,6 +58,23 @@ double RiskParam(const HttpRequest& req) {
   return risk;
 }
 
+/// 422 when `risk` is below the smallest per-instant risk the model's data
+/// support (CalcMinSupportedRisk, grip_force.h): the same rule and answer
+/// as the grip-force route, never a silent clamp.
+void CheckSupportedRisk(const StochasticFrictionModel& m,
+                        double risk,
+                        const std::string& material) {
+  const double min_risk = CalcMinSupportedRisk(m, 0.0);
+  if (risk < min_risk) {
+    throw RequestError(422,
+                       "risk",
+                       "risk = " + Num(risk) +
+                           " is below the smallest risk the data of '" +
+                           material + "' support: " + Num(min_risk),
+                       {{"min_supported_risk", min_risk}, {"hold_s", 0.0}});
+  }
+}
+
 /// Optional fn_n (> 0) and v_mm_s (>= 0).
 struct OperatingPointParams {
   std::optional<double> fn_n;
@@ -182,6 +199,7 @@ HttpResponse Export(FrictionLibrary& lib, const HttpRequest& req) {
     model = lib.RequireModel(id, fingertip, Requester(req));
   }
   const StochasticFrictionModel& m = StochasticNamingMaterial(*model);
+  CheckSupportedRisk(m, risk, id);
   SimExportInput in;
   in.name = name;
   in.material = id;
@@ -234,6 +252,7 @@ HttpResponse PairFriction(FrictionLibrary& lib, const HttpRequest& req) {
   if (measured) {
     const StochasticFrictionModel& m = StochasticNamingMaterial(*measured);
     const std::string& mat = measured->set.material;
+    CheckSupportedRisk(m, risk, mat);
     const double fn = op.fn_n ? *op.fn_n : FittedMean(m, "fn_n", mat);
     const double v = op.v_mm_s ? *op.v_mm_s : FittedMean(m, "v_mm_s", mat);
     const MuDistribution d =
@@ -278,6 +297,8 @@ HttpResponse PairFriction(FrictionLibrary& lib, const HttpRequest& req) {
   }
   const StochasticFrictionModel& sa = StochasticNamingMaterial(*ma);
   const StochasticFrictionModel& sb = StochasticNamingMaterial(*mb);
+  CheckSupportedRisk(sa, risk, tip);
+  CheckSupportedRisk(sb, risk, object);
   // Default operating point: the mean of the two models' fitted means.
   const double fn = op.fn_n ? *op.fn_n
                             : 0.5 * (FittedMean(sa, "fn_n", tip) +

@@ -83,6 +83,7 @@ struct Segment {
   std::vector<double> v_mm_s;  // signed velocity
   std::vector<double> mu;      // signed friction ratio
   double accel_mm_s2 = 0.0;    // percentile |dv/dt| over moving samples
+  double fn_mean_n = 0.0;      // mean normal force over the segment
   int moving = 0;              // moving samples
   StrokeKind kind = StrokeKind::kTooShort;
 };
@@ -246,6 +247,9 @@ std::vector<Segment> RecognizeStrokes(const StrokeData& d) {
           s.t_s.assign(t.begin() + lo, t.begin() + hi + 1);
           s.v_mm_s.assign(v.begin() + lo, v.begin() + hi + 1);
           s.mu.assign(mu.begin() + lo, mu.begin() + hi + 1);
+          double fn_sum = 0;
+          for (std::size_t k = lo; k <= hi; ++k) fn_sum += d.fn_n[b + k];
+          s.fn_mean_n = fn_sum / static_cast<double>(hi - lo + 1);
           const std::vector<double> slope =
               CalcSlopes(s.t_s, s.v_mm_s, kAccelHalfWindowS);
           std::vector<double> accel;
@@ -368,11 +372,28 @@ struct Step2Fit {
   LuGreFitResult fit;
   DynamicFitVariant variant = DynamicFitVariant::kLm2;
   Eigen::Index samples = 0;
+  double damping_gain = 0.0;  // LM-1's tie gain for this stroke
 };
 
-Step2Fit FitStep2(const LuGreStroke& stroke, const LuGreTheta& qs) {
+// Mass behind the LM-1 tie (paper 001 after eq. 10: sigma1 = sqrt(sigma0)
+// in N/m, Ns/m, i.e. m = 1 kg and zeta = 0.5); the gain is computed from
+// the stroke's own mean normal force (CalcDampingGain), not the 5 N
+// constant of DynamicFitOptions.
+constexpr double kTieMassKg = 1.0;
+constexpr double kTieDampingRatio = 0.5;
+
+double TieGain(double fn_mean_n) {
+  if (!(fn_mean_n > 0) || !std::isfinite(fn_mean_n))
+    return DynamicFitOptions().damping_gain;
+  return CalcDampingGain(kTieMassKg, fn_mean_n, kTieDampingRatio);
+}
+
+Step2Fit FitStep2(const LuGreStroke& stroke,
+                  const LuGreTheta& qs,
+                  double fn_mean_n) {
   Step2Fit last;
   last.samples = stroke.size();
+  last.damping_gain = TieGain(fn_mean_n);
   for (DynamicFitVariant variant :
        {DynamicFitVariant::kLm2, DynamicFitVariant::kLm1}) {
     for (double sigma0 : {10.0, 100.0}) {
@@ -381,6 +402,7 @@ Step2Fit FitStep2(const LuGreStroke& stroke, const LuGreTheta& qs) {
       guess[LuGreIndex::kDamping] = 0.01 * std::sqrt(sigma0 / 10.0);
       DynamicFitOptions options;
       options.variant = variant;
+      options.damping_gain = last.damping_gain;
       last.fit = FitLuGreDynamic(stroke, guess, 0.0, options);
       last.variant = variant;
       if (last.fit.status == LuGreFitStatus::kConverged) return last;
@@ -455,7 +477,7 @@ json IdentifyLuGre(const StrokeData& all, std::string* note) {
     AppendSegment(
         **it, &td, &vd, &mud, static_cast<std::size_t>(kMaxDynamicSamples));
     tried_samples += td.size();
-    Step2Fit r = FitStep2(ToStroke(td, vd, mud), step1.theta);
+    Step2Fit r = FitStep2(ToStroke(td, vd, mud), step1.theta, (*it)->fn_mean_n);
     if (r.fit.status != LuGreFitStatus::kConverged) {
       last_why = std::string(ToString(r.fit.status)) + ": " + r.fit.why;
     } else if (!(r.fit.residual_rms <= rms_limit)) {
@@ -541,10 +563,13 @@ json IdentifyLuGre(const StrokeData& all, std::string* note) {
     family.P_theta.block<2, 2>(LuGreIndex::kStiffness, LuGreIndex::kStiffness) =
         P;
   } else {
-    // LM-1: sigma1 = c sqrt(sigma0) with the fits' damping gain.
+    // LM-1: sigma1 = c sqrt(sigma0) with the newest used fit's gain (its
+    // stroke's normal force).
     const double var = 1.0 / info(0, 0);
     const double s0 = info_x[0] * var;
-    const double c = DynamicFitOptions().damping_gain;
+    double c = DynamicFitOptions().damping_gain;
+    for (const Step2Fit& f : fits)
+      if (&f.fit == newest) c = f.damping_gain;
     const double ds1 = c / (2.0 * std::sqrt(s0));
     family.theta[LuGreIndex::kStiffness] = s0;
     family.theta[LuGreIndex::kDamping] = c * std::sqrt(s0);

@@ -12,6 +12,7 @@
 #include <mujoco/mujoco.h>
 #include <unistd.h>
 
+#include "frictiond/estimators/grip_force.h"
 #include "frictiond/mujoco/friction_adapter.h"
 
 namespace frictiond::mujoco {
@@ -54,6 +55,7 @@ StochasticFrictionModel Truth() {
         Term::Intercept(), Term::Linear("v_mm_s"), Term::Linear("fn_n")};
     r->beta = Eigen::Vector3d(0.8, -0.002, -0.01);
     r->sigma_eps = 0.1;
+    r->samples = 100000;  // a well-identified truth: supports risk 0.01
     for (double p : EpsQuantileLevels())
       r->eps_quantiles.push_back(CalcEpsQuantile(*r, p));  // normal
   }

@@ -3,7 +3,9 @@
 /// C++ client of frictiond for robots: fetch a material's model once over
 /// HTTP, then evaluate it locally in the control loop (PredictMu,
 /// CalcSlipLikelihood, CalcGripForce of frictiond/estimators) without
-/// further network traffic.
+/// further network traffic. The grip force takes the hold and the grasp's
+/// state (grip_force.h): CalcGripForce(model, load_n, risk,
+/// GripForceOptions{hold_s, v_mm_s}); defaults: one instant, at rest.
 ///
 /// @code
 ///   frictiond::FrictionClient client({"http://127.0.0.1:8080"});

@@ -9,9 +9,11 @@
 ///   L(Ft/Fn) = 1 / (1 + exp(-c1*(Ft/Fn - c2)))         (section III-A, Fig. 3)
 /// fitted by maximum likelihood on all samples.
 ///
-/// Noise assumptions: eps is i.i.d. within the fit (the standard errors are
-/// the textbook OLS ones; samples within a stroke are correlated, so treat
-/// them as optimistic; diagnosis uses stroke-grouped statistics instead).
+/// Noise assumptions: eps is treated as i.i.d. within the fit (the standard
+/// errors are the textbook OLS ones; samples within a stroke are correlated, so
+/// treat them as optimistic; diagnosis uses stroke-grouped statistics instead).
+/// Its time correlation is identified after the fit (eps_time.h) and used
+/// by the grip force for a hold (grip_force.h).
 ///
 /// Usage:
 /// @code
@@ -22,7 +24,7 @@
 ///   /* fit.why */ } MuPrediction p = PredictMu(fit.model, /*fn_n=*/2.0,
 ///   /*v_mm_s=*/20.0); double slip_prob = CalcSlipLikelihood(fit.model,
 ///   /*fn_n=*/2.0, /*ft_n=*/1.5); GripForce g = CalcGripForce(fit.model,
-///   /*load_n=*/3.0, /*risk=*/0.001);
+///   /*load_n=*/3.0, /*risk=*/0.001);  // grip_force.h
 /// @endcode
 
 #include <cstddef>
@@ -33,6 +35,7 @@
 
 #include <Eigen/Dense>
 
+#include "frictiond/estimators/eps_time.h"
 #include "frictiond/estimators/preprocessing.h"
 #include "frictiond/estimators/regression.h"
 #include "frictiond/estimators/stroke_data.h"
@@ -108,6 +111,9 @@ struct StochasticFrictionModel {
   int samples_total = 0;       ///< all samples offered
   int samples_slip = 0;        ///< slipping samples used for mu
   SlipLabelOptions labelling;  ///< rule that labelled slip
+  /// Time correlation of mu's eps (eps_time.h): AR(1) within episodes plus
+  /// a per-episode offset, identified from the fitted slipping samples.
+  EpsTimeModel eps_time;
 };
 
 /// Options of FitStochasticModel.
@@ -196,21 +202,8 @@ double CalcSlipLikelihood(const StochasticFrictionModel& model,
                           double fn_n,
                           double ft_n);
 
-/// Grip force for a risk level (paper 000, section IV-A).
-struct GripForce {
-  bool attainable =
-      false;             ///< false: no normal force holds the load at that risk
-  std::string why;       ///< reason when not attainable
-  double fn_n = 0.0;     ///< smallest normal force with P(slip) <= risk
-  double mu_used = 0.0;  ///< the risk-quantile of mu at that force
-  bool extrapolated = false;  ///< fn_n lies outside the fitted Fn range
-};
-
-/// Smallest Fn with P(mu(Fn) < load/Fn) <= risk under the Fn-only model:
-/// solves Fn * (b0 + b2 Fn + q_eps(risk)) = load.
-/// @throws std::invalid_argument for load_n <= 0 or risk outside (0, 1).
-GripForce CalcGripForce(const StochasticFrictionModel& model,
-                        double load_n,
-                        double risk);
-
 }  // namespace frictiond
+
+// The grip force (CalcGripForce, GripForceOptions) lives in grip_force.h,
+// included here so that existing includers keep seeing it.
+#include "frictiond/estimators/grip_force.h"  // IWYU pragma: export

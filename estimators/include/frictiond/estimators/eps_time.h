@@ -1,0 +1,112 @@
+#pragma once
+/// @file
+/// Time correlation of eps (the residual of paper 000 eq. (1)) and the
+/// first-passage probability a held grasp needs.
+///
+/// Paper 000 treats eps as a draw per instant. In every measured stroke eps
+/// is correlated in time, so "P(slip)" of a grasp held for 3 s differs a lot
+/// from P(slip) at one instant. frictiond describes eps by its marginal
+/// distribution F (the empirical quantiles stored with the model, with an
+/// exponential lower tail below the 0.001 quantile) and a Gaussian copula:
+///
+///   eps_t = F^-1(Phi(z_t)),
+///   z_t   = sqrt(f) * A + sqrt(1 - f) * w_t,   A ~ N(0, 1) once per episode,
+///   w_t   = phi * w_{t-1} + sqrt(1 - phi^2) * e_t,   e_t ~ N(0, 1) i.i.d.,
+///
+/// sampled every dt_s. f (offset_fraction) is the share of the latent
+/// variance that stays constant within an episode (a stroke's, or a grasp's,
+/// offset: "across episodes"), phi the AR(1) coefficient per sample of the
+/// rest ("within episodes"). Both are identified by the method of moments
+/// from the lag-0, -1 and -2 autocovariances of the standardised residuals
+/// (standing in for the latent z: equal for Gaussian eps), pooled over
+/// consecutive slipping samples of each episode:
+///   g0 = 1, g1 = f + (1 - f) phi, g2 = f + (1 - f) phi^2
+///   => phi = (g1 - g2) / (g0 - g1),  1 - f = (g0 - g1) / (1 - phi).
+///
+/// A grasp held for hold_s seconds is one new episode of n = 1 + round(hold_s
+/// / dt_s) samples; it slips when eps_t < u at any of them, so
+///   P(slip during hold) = 1 - Int phi_N(a) S_n((c - sqrt(f) a)/sqrt(1 - f)) da
+/// with c = Phi^-1(F(u)) (F: the stored quantiles, the tail below) and S_n(b) =
+/// P(w_0..w_{n-1} >= b) the survival of the stationary AR(1), computed exactly
+/// up to quadrature error by iterating its transition kernel on a grid
+/// (Nystroem) and extrapolating geometrically once the quasi-stationary decay
+/// rate has converged (CalcAr1Survival).
+///
+/// Departures from the paper (which has none of this): the risk is per hold,
+/// not per instant; the time step of "any time" is the sampling interval of
+/// the identified data (a slip shorter than one sample is not seen by the
+/// data either).
+///
+/// For simulators (e.g. a MuJoCo plug-in): draw A once per grasp and w_t as
+/// above at dt_s, map through Phi and CalcEpsQuantileExtended.
+
+#include <string>
+#include <vector>
+
+namespace frictiond {
+
+/// Identified time structure of eps (stored with the model, JSON field
+/// "eps_time" of the stochastic model).
+struct EpsTimeModel {
+  bool valid = false;  ///< false: not identified (see why); hold_s > 0 refused
+  std::string why;     ///< reason when not valid
+  double dt_s = 0.0;   ///< sampling interval of the identified data [s]
+  double phi = 0.0;    ///< AR(1) coefficient per sample, in [0, 0.98]
+  double corr_time_s = 0.0;      ///< -dt_s / ln(phi) (0 when phi = 0) [s]
+  double offset_fraction = 0.0;  ///< f: latent variance constant per episode
+  int episodes = 0;              ///< episodes (runs of consecutive samples)
+  int samples = 0;               ///< residuals used
+  /// Effectively independent samples behind the marginal's tail:
+  /// sum over episodes of 1 / (f + (1 - f) (1 + phi) / ((1 - phi) n_k)).
+  double effective_samples = 0.0;
+  /// Smallest per-instant slip probability the data support:
+  /// max(1e-6, 1 / effective_samples); below it the eps quantile would be
+  /// a guess beyond every independent observation.
+  double min_instant_risk = 1.0;
+  /// Lower tail of eps beyond the stored quantiles: a generalised Pareto
+  /// fit (probability-weighted moments, Hosking & Wallis 1987) to the
+  /// residuals below their 2 % quantile, P(eps < q_0.02 - y) = 0.02 (1 +
+  /// tail_xi y / tail_scale)^(-1 / tail_xi). tail_xi > 0: heavier than
+  /// exponential; Gaussian eps gives about -0.1. tail_scale = 0: no fit
+  /// (an exponential tail through the 0.001 and 0.01 quantiles is used).
+  double tail_xi = 0.0;
+  double tail_scale = 0.0;
+};
+
+/// Identifies EpsTimeModel from residuals in time order. episode[i] names
+/// the episode of residuals[i]: consecutive samples of one slipping run
+/// share an id (a new id wherever a sample was skipped). dt_s: the sampling
+/// interval. Needs >= 2 episodes and >= 50 lag pairs; otherwise valid =
+/// false with the reason. phi is capped at 0.98 (a conservative cap: a
+/// smaller phi means more independent looks per hold, so more grip force).
+EpsTimeModel FitEpsTimeModel(const std::vector<double>& residuals,
+                             const std::vector<int>& episode,
+                             double dt_s);
+
+/// Survival S_n(b) = P(w_t >= b for t = 0..n-1) of a stationary unit AR(1)
+/// with coefficient phi in [0, 0.995]. n >= 1. Exact for n = 1 and phi = 0;
+/// otherwise quadrature (relative error of the complement below ~1e-4,
+/// tested against closed forms and Monte Carlo).
+/// @throws std::invalid_argument for n < 1 or phi outside [0, 0.995].
+double CalcAr1Survival(double b, int n, double phi);
+
+/// P(z_t < c for some t in 0..n-1) for the latent process above (one
+/// episode of n samples). The probability that a hold of n samples slips
+/// when the per-instant slip probability is Phi(c).
+/// @throws std::invalid_argument as CalcAr1Survival, or f outside [0, 1].
+double CalcHoldCrossingProbability(double c,
+                                   int n,
+                                   double phi,
+                                   double offset_fraction);
+
+/// The level c with CalcHoldCrossingProbability(c, n, phi, f) = risk (to
+/// 1e-7 in c): the per-instant slip probability Phi(c) a hold of n samples
+/// may have. Tabulates S_n once.
+/// @throws std::invalid_argument as CalcHoldCrossingProbability, or risk
+/// outside (0, 1).
+double CalcHoldCrossingLevel(double risk,
+                             int n,
+                             double phi,
+                             double offset_fraction);
+
+}  // namespace frictiond

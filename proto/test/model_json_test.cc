@@ -1,0 +1,80 @@
+#include "frictiond/proto/model_json.h"
+
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+namespace frictiond {
+namespace {
+
+StochasticFrictionModel WithTimeModel() {
+  StochasticFrictionModel m;
+  RegressionModel& r = m.mu;
+  r.terms = {Term::Intercept()};
+  r.beta = Eigen::VectorXd::Constant(1, 0.5);
+  r.std_err = Eigen::VectorXd::Constant(1, 0.01);
+  r.P_beta = Eigen::MatrixXd::Constant(1, 1, 1e-4);
+  r.sigma_eps = 0.05;
+  r.samples = 1200;
+  for (double p : EpsQuantileLevels()) r.eps_quantiles.push_back(p - 0.5);
+  m.mu_fn_only = r;
+  EpsTimeModel& t = m.eps_time;
+  t.valid = true;
+  t.dt_s = 0.01;
+  t.phi = 0.9;
+  t.corr_time_s = -0.01 / std::log(0.9);
+  t.offset_fraction = 0.4;
+  t.episodes = 12;
+  t.samples = 1200;
+  t.effective_samples = 250.5;
+  t.min_instant_risk = 1 / 250.5;
+  t.tail_xi = 0.2;
+  t.tail_scale = 0.03;
+  return m;
+}
+
+TEST(ModelJson, EpsTimeRoundTrips) {
+  const StochasticFrictionModel m = WithTimeModel();
+  const StochasticFrictionModel back =
+      StochasticModelFromJson(StochasticModelToJson(m));
+  const EpsTimeModel& a = m.eps_time;
+  const EpsTimeModel& b = back.eps_time;
+  EXPECT_TRUE(b.valid);
+  EXPECT_EQ(b.dt_s, a.dt_s);
+  EXPECT_EQ(b.phi, a.phi);
+  EXPECT_EQ(b.corr_time_s, a.corr_time_s);
+  EXPECT_EQ(b.offset_fraction, a.offset_fraction);
+  EXPECT_EQ(b.episodes, a.episodes);
+  EXPECT_EQ(b.samples, a.samples);
+  EXPECT_EQ(b.effective_samples, a.effective_samples);
+  EXPECT_EQ(b.min_instant_risk, a.min_instant_risk);
+  EXPECT_EQ(b.tail_xi, a.tail_xi);
+  EXPECT_EQ(b.tail_scale, a.tail_scale);
+}
+
+TEST(ModelJson, HostileEpsTimeLeavesItInvalid) {
+  // Out-of-range values from a stored or uploaded model must not reach the
+  // quadrature: the time model becomes invalid (hold_s > 0 is refused).
+  for (const char* key :
+       {"phi", "dt_s", "offset_fraction", "min_instant_risk"}) {
+    nlohmann::json j = StochasticModelToJson(WithTimeModel());
+    j["eps_time"][key] = -1.0;
+    const StochasticFrictionModel m = StochasticModelFromJson(j);
+    EXPECT_FALSE(m.eps_time.valid) << key;
+    EXPECT_FALSE(m.eps_time.why.empty()) << key;
+  }
+  nlohmann::json j = StochasticModelToJson(WithTimeModel());
+  j["eps_time"]["valid"] = "yes";  // not a boolean: not valid, no throw
+  EXPECT_FALSE(StochasticModelFromJson(j).eps_time.valid);
+  j = StochasticModelToJson(WithTimeModel());
+  j["eps_time"]["tail_xi"] = 5.0;  // out of range: exponential tail instead
+  const StochasticFrictionModel m = StochasticModelFromJson(j);
+  EXPECT_TRUE(m.eps_time.valid);
+  EXPECT_EQ(m.eps_time.tail_scale, 0.0);
+  // A model stored before eps_time existed: no time model.
+  j.erase("eps_time");
+  EXPECT_FALSE(StochasticModelFromJson(j).eps_time.valid);
+}
+
+}  // namespace
+}  // namespace frictiond
