@@ -62,6 +62,14 @@ StochasticFrictionModel Truth() {
   t.mu_fn_only.terms = {Term::Intercept(), Term::Linear("fn_n")};
   t.mu_fn_only.beta = Eigen::Vector2d(0.8, -0.01);
   t.mu_coulomb = 0.77;
+  // eps time model (issue 19) of what the adapter realises: all of eps's
+  // variance is constant per contact episode (offset fraction 1), so the
+  // risk of a hold equals the risk of one instant.
+  t.eps_time.valid = true;
+  t.eps_time.dt_s = 0.002;
+  t.eps_time.phi = 0.0;
+  t.eps_time.offset_fraction = 1.0;
+  t.eps_time.min_instant_risk = 0.001;
   return t;
 }
 
@@ -142,8 +150,14 @@ TEST(DropRate, StochasticTruthDropsAtTheRequestedRisk) {
   Scene s;
   const StochasticFrictionModel truth = Truth();
   for (double risk : {0.01, 0.05, 0.2}) {
-    const GripForce g = CalcGripForce(truth, s.Load(), risk);
+    // The grip force for the hold the episodes realise (issue 19's
+    // P(any slip during hold_s)), which must equal the one-instant answer
+    // under a per-episode eps.
+    GripForceOptions hold;
+    hold.hold_s = kHoldS;
+    const GripForce g = CalcGripForce(truth, s.Load(), risk, hold);
     ASSERT_TRUE(g.attainable) << g.why;
+    EXPECT_NEAR(g.fn_n, CalcGripForce(truth, s.Load(), risk).fn_n, 1e-3);
     FrictionAdapter stochastic(AdapterOptions{});
     stochastic.TagGeom(s.m, "tip", truth);
     AdapterOptions co;

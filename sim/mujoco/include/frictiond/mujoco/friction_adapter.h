@@ -16,8 +16,9 @@
 /// mj_forwardSkip(mjSTAGE_POS) and mj_Euler.
 ///
 /// Departures from the paper / limits (docs/mujoco.md):
-///  - eps is held constant per contact episode (its identified time
-///    correlation is not modelled: the model JSON on main has none);
+///  - eps is held constant per contact episode: the model's identified
+///    time correlation (eps_time: AR(1) phi, offset fraction) is ignored,
+///    i.e. simulated as offset fraction 1;
 ///  - Fn and v_slip lag one step (they come from the previous step);
 ///  - only the Euler integrator (RK4 would call mj_forward internally and
 ///    reset friction); Step() throws otherwise;
