@@ -13,6 +13,14 @@ foreach(_dir estimators proto client)
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/${_dir}/include/frictiond
     DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 endforeach()
+# The MuJoCo adapter: find_package(frictiond COMPONENTS mujoco).
+if(TARGET frictiond_mujoco)
+  install(TARGETS frictiond_mujoco EXPORT frictiondTargets
+    ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+    LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
+  install(DIRECTORY ${PROJECT_SOURCE_DIR}/sim/mujoco/include/frictiond
+    DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+endif()
 if(TARGET frictiond_lcmtypes)
   install(DIRECTORY ${CMAKE_BINARY_DIR}/lcmtypes/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 endif()

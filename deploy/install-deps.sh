@@ -11,6 +11,8 @@ packages=(
   libeigen3-dev libsqlite3-dev sqlite3 libpq-dev libcpp-httplib-dev nlohmann-json3-dev libcli11-dev
   liblcm-dev liblcm-bin libglib2.0-dev
   libopencv-dev
+  libmujoco-dev        # MuJoCo 2.2 for the simulator adapter sim/mujoco
+  libqhull-dev         # (mujoco::mujoco names /usr/include/libqhull_r in its include path)
   libssl-dev           # SHA-256 / HMAC-SHA256 (API tokens, signed LCM)
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev

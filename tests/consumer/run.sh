@@ -10,3 +10,4 @@ cmake --install "$build_dir" --prefix "$work/prefix" >/dev/null
 cmake -S "$src_dir" -B "$work/build" -DCMAKE_PREFIX_PATH="$work/prefix" -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build "$work/build" -j2 >/dev/null
 "$work/build/robot_app"
+if [ -x "$work/build/sim_app" ]; then "$work/build/sim_app"; fi

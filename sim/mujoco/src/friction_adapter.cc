@@ -1,0 +1,188 @@
+#include "frictiond/mujoco/friction_adapter.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace frictiond::mujoco {
+namespace {
+
+double Coefficient(const RegressionModel& m, const char* term) {
+  const int k = m.FindTerm(term);
+  return k >= 0 && k < m.beta.size() ? m.beta(k) : 0.0;
+}
+
+std::pair<int, int> PairKey(int g1, int g2) {
+  return g1 < g2 ? std::make_pair(g1, g2) : std::make_pair(g2, g1);
+}
+
+// Velocity of geom g at world point p (m/s): linear + angular x (p - xpos).
+void PointVelocity(const mjModel* m,
+                   const mjData* d,
+                   int g,
+                   const mjtNum p[3],
+                   mjtNum out[3]) {
+  mjtNum v[6];  // [angular, linear] in the world frame at geom_xpos
+  mj_objectVelocity(m, d, mjOBJ_GEOM, g, v, 0);
+  const mjtNum* c = d->geom_xpos + 3 * g;
+  const mjtNum r[3] = {p[0] - c[0], p[1] - c[1], p[2] - c[2]};
+  out[0] = v[3] + v[1] * r[2] - v[2] * r[1];
+  out[1] = v[4] + v[2] * r[0] - v[0] * r[2];
+  out[2] = v[5] + v[0] * r[1] - v[1] * r[0];
+}
+
+}  // namespace
+
+FrictionAdapter::FrictionAdapter(AdapterOptions options)
+    : options_(options), rng_(options.seed) {
+  if (!(options_.mu_min >= 0) || !(options_.mu_max > options_.mu_min))
+    throw std::invalid_argument("mu_min/mu_max: need 0 <= mu_min < mu_max");
+  if (!(options_.episode_gap_s >= 0))
+    throw std::invalid_argument("episode_gap_s: must be >= 0");
+}
+
+void FrictionAdapter::TagGeom(int geom, const StochasticFrictionModel& model) {
+  if (geom < 0) throw std::invalid_argument("geom: negative id");
+  if (model.mu.FindTerm("intercept") < 0)
+    throw std::invalid_argument("model.mu: no intercept term");
+  tagged_[geom] = model;
+}
+
+void FrictionAdapter::TagGeom(const mjModel* m,
+                              const std::string& name,
+                              const StochasticFrictionModel& model) {
+  if (!m) throw std::invalid_argument("m: no MuJoCo model");
+  const int id = mj_name2id(m, mjOBJ_GEOM, name.c_str());
+  if (id < 0) throw std::invalid_argument("geom: no geom named '" + name + "'");
+  TagGeom(id, model);
+}
+
+void FrictionAdapter::TagGeom(const mjModel* m,
+                              const std::string& name,
+                              const ModelSet& set) {
+  if (!set.stochastic)
+    throw std::invalid_argument("stochastic: model set of '" + set.material +
+                                "' has no stochastic model");
+  TagGeom(m, name, *set.stochastic);
+}
+
+void FrictionAdapter::Reset(std::uint64_t seed) {
+  rng_.seed(seed);
+  episodes_.clear();
+}
+
+double FrictionAdapter::CalcMu(const StochasticFrictionModel& model,
+                               double fn_n,
+                               double v_mm_s,
+                               double eps) const {
+  double mu = 0.0;
+  if (options_.mode == FrictionMode::kCoulomb) {
+    mu = model.mu_coulomb;
+  } else {
+    // Paper 000 eq. (1): mu = b0 + b1 v + b2 Fn + eps.
+    mu = Coefficient(model.mu, "intercept") +
+         Coefficient(model.mu, "v_mm_s") * v_mm_s +
+         Coefficient(model.mu, "fn_n") * fn_n;
+    if (options_.mode == FrictionMode::kStochastic) mu += eps;
+  }
+  if (!std::isfinite(mu)) mu = options_.mu_min;
+  return std::clamp(mu, options_.mu_min, options_.mu_max);
+}
+
+void FrictionAdapter::MeasurePairs(const mjModel* m, const mjData* d) {
+  // Forces and velocities of the contacts of the step just taken (efc_force
+  // belongs to d->contact until the next collision).
+  for (auto& [key, ep] : episodes_) {
+    ep.fn_n = 0.0;
+    ep.v_mm_s = 0.0;
+    ep.seen = false;
+  }
+  for (int i = 0; i < d->ncon; ++i) {
+    const mjContact& c = d->contact[i];
+    auto it = episodes_.find(PairKey(c.geom1, c.geom2));
+    if (it == episodes_.end()) continue;
+    mjtNum f[6];
+    mj_contactForce(m, d, i, f);
+    mjtNum v1[3], v2[3];
+    PointVelocity(m, d, c.geom1, c.pos, v1);
+    PointVelocity(m, d, c.geom2, c.pos, v2);
+    mjtNum rel[3] = {v2[0] - v1[0], v2[1] - v1[1], v2[2] - v1[2]};
+    const mjtNum* n = c.frame;  // first row: contact normal
+    const mjtNum vn = rel[0] * n[0] + rel[1] * n[1] + rel[2] * n[2];
+    for (int k = 0; k < 3; ++k) rel[k] -= vn * n[k];
+    const double vt =
+        std::sqrt(rel[0] * rel[0] + rel[1] * rel[1] + rel[2] * rel[2]);
+    ContactEpisode& ep = it->second;
+    ep.fn_n += std::max<mjtNum>(f[0], 0.0);
+    ep.v_mm_s = std::max(ep.v_mm_s, 1000.0 * vt);  // m/s -> mm/s
+    ep.seen = true;
+  }
+}
+
+void FrictionAdapter::SetContactFriction(const mjModel* /*m*/, mjData* d) {
+  std::map<std::pair<int, int>, ContactEpisode> next;
+  for (int i = 0; i < d->ncon; ++i) {
+    mjContact& c = d->contact[i];
+    auto t = tagged_.find(c.geom1);
+    if (t == tagged_.end()) t = tagged_.find(c.geom2);
+    if (t == tagged_.end()) continue;
+    const auto key = PairKey(c.geom1, c.geom2);
+    auto n = next.find(key);
+    if (n == next.end()) {
+      auto old = episodes_.find(key);
+      ContactEpisode ep;
+      if (old != episodes_.end() &&
+          d->time - old->second.last_s <= options_.episode_gap_s) {
+        ep = old->second;  // the episode goes on: keep eps
+      } else {
+        // A new episode: eps from the empirical distribution by inverse
+        // transform of a uniform draw (CalcEpsQuantile: stored quantiles,
+        // their end values beyond the outermost levels).
+        std::uniform_real_distribution<double> u(0.0, 1.0);
+        ep.eps = CalcEpsQuantile(t->second.mu, u(rng_));
+      }
+      ep.last_s = d->time;
+      ep.mu = CalcMu(t->second, ep.fn_n, ep.v_mm_s, ep.eps);
+      n = next.emplace(key, ep).first;
+    }
+    c.friction[0] = n->second.mu;
+    c.friction[1] = n->second.mu;
+  }
+  // Pairs out of contact for less than the gap keep their episode.
+  for (auto& [key, ep] : episodes_) {
+    if (!next.count(key) && d->time - ep.last_s <= options_.episode_gap_s) {
+      ep.fn_n = 0.0;
+      ep.v_mm_s = 0.0;
+      next.emplace(key, ep);
+    }
+  }
+  episodes_.swap(next);
+}
+
+void FrictionAdapter::Step(const mjModel* m, mjData* d) {
+  if (m->opt.integrator != mjINT_EULER)
+    throw std::invalid_argument(
+        "opt.integrator: the adapter supports the Euler integrator only");
+  MeasurePairs(m, d);
+  mj_checkPos(m, d);
+  mj_checkVel(m, d);
+  // mj_fwdPosition of MuJoCo 2.2.2, with friction set between collision
+  // and constraint construction.
+  mj_kinematics(m, d);
+  mj_comPos(m, d);
+  mj_camlight(m, d);
+  mj_tendon(m, d);
+  mj_crb(m, d);
+  mj_factorM(m, d);
+  mj_collision(m, d);
+  SetContactFriction(m, d);
+  mj_makeConstraint(m, d);
+  mj_transmission(m, d);
+  mj_projectConstraint(m, d);
+  // The rest of mj_forward, then mj_step's Euler integration.
+  mj_forwardSkip(m, d, mjSTAGE_POS, 0);
+  mj_checkAcc(m, d);
+  mj_Euler(m, d);
+}
+
+}  // namespace frictiond::mujoco
