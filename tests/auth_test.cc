@@ -4,6 +4,7 @@
 // runs the real `frictiond` and `friction` binaries over loopback HTTP.
 #include "frictiond/server/auth.h"
 
+#include <cctype>
 #include <cstdlib>
 #include <fstream>
 #include <map>
@@ -20,6 +21,7 @@
 #include "frictiond/crypto/hmac.h"
 #include "frictiond/estimators/stroke_csv.h"
 #include "frictiond/server/daemon.h"
+#include "frictiond/server/openapi.h"
 #include "frictiond/testing/daemon_process.h"
 #include "frictiond/testing/stroke_simulator.h"
 
@@ -61,6 +63,7 @@ const std::map<std::pair<std::string, std::string>, Role> kExpected = {
     {{"GET", "/v1/materials/{id}/slip-likelihood"}, Role::kReader},
     {{"GET", "/v1/materials/{id}/grip-force"}, Role::kReader},
     {{"GET", "/v1/identifications"}, Role::kReader},
+    {{"GET", "/v1/openapi.json"}, Role::kReader},
     {{"POST", "/v1/materials/{id}/diagnose"}, Role::kRobot},
     {{"GET", "/v1/materials/{id}/export"}, Role::kReader},
     {{"GET", "/v1/pairs/{fingertip}/{object}/friction"}, Role::kReader},
@@ -213,6 +216,50 @@ Probe DamagingProbe(const RouteKey& r, const std::string& operator_id) {
     p.body = R"({"name":"sneaky","role":"operator"})";
   }
   return p;
+}
+
+// GET /v1/openapi.json (CONTRACT.md) describes every registered /v1 route
+// with its path parameters and role, and its query-parameter table names
+// only registered routes.
+TEST_F(AuthDispatchTest, OpenApiDescribesEveryRegisteredRoute) {
+  const HttpResponse res = Send("none", "GET", "/v1/openapi.json");
+  ASSERT_EQ(res.status, 200) << res.body;
+  const nlohmann::json doc = nlohmann::json::parse(res.body);
+  EXPECT_EQ(doc.value("openapi", ""), "3.0.3");
+  const std::vector<RouteKey> routes = daemon_->http().Routes();
+  std::set<std::pair<std::string, std::string>> registered;
+  for (const RouteKey& r : routes) {
+    registered.insert({r.method, r.pattern});
+    if (r.pattern.rfind("/v1/", 0) != 0) continue;
+    std::string method = r.method;
+    for (char& c : method) c = static_cast<char>(std::tolower(c));
+    ASSERT_TRUE(doc["paths"].contains(r.pattern)) << r.pattern;
+    ASSERT_TRUE(doc["paths"][r.pattern].contains(method))
+        << r.method << " " << r.pattern;
+    const nlohmann::json& op = doc["paths"][r.pattern][method];
+    EXPECT_EQ(op.value("x-frictiond-role", ""),
+              std::string(RoleName(RequiredRole(r.method, r.pattern))));
+    std::size_t braces = 0;
+    for (char c : r.pattern) braces += c == '{';
+    std::size_t path_params = 0, query_params = 0;
+    for (const auto& p : op.value("parameters", nlohmann::json::array())) {
+      path_params += p.value("in", "") == "path";
+      query_params += p.value("in", "") == "query";
+    }
+    EXPECT_EQ(path_params, braces) << r.pattern;
+    EXPECT_EQ(query_params,
+              DocumentedQueryParameters(r.method, r.pattern).size())
+        << r.pattern;
+  }
+  for (const RouteKey& r : RoutesWithDocumentedQueries())
+    EXPECT_TRUE(registered.count({r.method, r.pattern}))
+        << "query table names an unregistered route: " << r.method << " "
+        << r.pattern;
+  const auto& grip = doc["paths"]["/v1/materials/{id}/grip-force"]["get"];
+  std::set<std::string> names;
+  for (const auto& p : grip["parameters"]) names.insert(p.value("name", ""));
+  for (const char* n : {"load_n", "risk", "hold_s", "v_mm_s"})
+    EXPECT_TRUE(names.count(n)) << n;
 }
 
 TEST_F(AuthDispatchTest, EveryRouteHasTheExpectedPolicy) {

@@ -11,6 +11,7 @@
 
 #include "frictiond/crypto/hmac.h"
 #include "frictiond/server/lcm_auth.h"
+#include "frictiond/server/openapi.h"
 #include "frictiond/server/routes.h"
 
 namespace frictiond {
@@ -391,6 +392,7 @@ int Daemon::Start() {
   RegisterExportRoutes(*http_, *library_);
   RegisterConsoleRoutes(*http_, *library_);
   RegisterAuthRoutes(*http_, *auth_, library_->store());
+  RegisterOpenApiRoute(*http_);  // last: it describes every route above
   auth_->Install(*http_);
   const int port = http_->Bind(config_.bind, config_.port);
   // Fleet: writes of other daemons on a shared database (PostgreSQL)
