@@ -508,6 +508,9 @@ TEST(HostileDispatchTest, EveryRouteParameterAndHeader) {
   int checked = 0;
   for (const RouteKey& r : daemon.http().Routes()) {
     SCOPED_TRACE(r.method + " " + r.pattern);
+    // A feature this build leaves out (e.g. recognition without OpenCV, as
+    // in the sanitizer job) answers every request 501 "not implemented".
+    if (daemon.http().Dispatch(make(r, "some-id")).status == 501) continue;
     const bool has_capture = r.pattern.find('{') != std::string::npos;
     for (const std::string& v : bad) {
       for (const std::string& p : params) {
