@@ -57,6 +57,16 @@ double ParseNumberParam(const std::string& name, const std::string& value) {
   return x;
 }
 
+int ParseVersionParam(const std::string& value) {
+  const double x = ParseNumberParam("version", value);
+  if (!(x >= 1 && x == std::floor(x) && x < 1e9))
+    throw RequestError(
+        400,
+        "version",
+        "version = '" + ShownText(value) + "' (must be a positive integer)");
+  return static_cast<int>(x);
+}
+
 std::optional<SlipLabelOptions> ParseLabelling(
     const std::function<std::optional<std::string>(const std::string&)>& get,
     const SlipLabelOptions& base) {

@@ -117,13 +117,7 @@ LoadedActuator LoadActuator(FrictionLibrary& lib, const HttpRequest& req) {
   const std::string joint = JointParam(req);
   LoadedActuator out;
   if (auto v = req.Query("version")) {
-    const double x = ParseNumberParam("version", *v);
-    if (!(x >= 1 && x == std::floor(x) && x < 1e9))
-      throw RequestError(
-          400,
-          "version",
-          "version = '" + v->substr(0, 32) + "' (must be a positive integer)");
-    out.model = lib.FindModelVersion(id, joint, static_cast<int>(x));
+    out.model = lib.FindModelVersion(id, joint, ParseVersionParam(*v));
   } else {
     out.model = lib.FindModel(id, joint);
   }

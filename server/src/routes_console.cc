@@ -71,20 +71,14 @@ std::shared_ptr<const CachedModel> FindModelFor(FrictionLibrary& lib,
                                                 const std::string& id,
                                                 const std::string& fingertip) {
   if (auto v = req.Query("version")) {
-    const double x = ParseNumberParam("version", *v);
-    if (!(x >= 1 && x == std::floor(x) && x < 1e9)) {
-      throw RequestError(
-          400,
-          "version",
-          "version = '" + v->substr(0, 32) + "' (must be a positive integer)");
-    }
-    auto m = lib.FindModelVersion(id, fingertip, static_cast<int>(x));
+    const int version = ParseVersionParam(*v);
+    auto m = lib.FindModelVersion(id, fingertip, version);
     if (!m)
       throw RequestError(404,
                          "version",
                          "material '" + id + "' has no model version " +
-                             std::to_string(static_cast<int>(x)) +
-                             " for fingertip '" + fingertip + "'");
+                             std::to_string(version) + " for fingertip '" +
+                             fingertip + "'");
     return m;
   }
   auto m = lib.FindModel(id, fingertip);

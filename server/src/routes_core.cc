@@ -39,13 +39,7 @@ std::shared_ptr<const CachedModel> ModelFor(FrictionLibrary& lib,
   const std::string fingertip = FingertipParam(req);
   if (auto v = req.Query("version")) {
     CheckId(id, "id");
-    const double x = ParseNumberParam("version", *v);
-    if (!(x >= 1 && x == std::floor(x) && x < 1e9)) {
-      throw RequestError(400,
-                         "version",
-                         "version = '" + *v + "' (must be a positive integer)");
-    }
-    auto m = lib.FindModelVersion(id, fingertip, static_cast<int>(x));
+    auto m = lib.FindModelVersion(id, fingertip, ParseVersionParam(*v));
     if (!m)
       throw RequestError(
           404, "version", "material '" + id + "' has no model version " + *v);

@@ -178,13 +178,7 @@ HttpResponse Export(FrictionLibrary& lib, const HttpRequest& req) {
   const OperatingPointParams op = OperatingPointQuery(req);
   std::optional<int> version;
   if (auto v = req.Query("version")) {
-    const double x = ParseNumberParam("version", *v);
-    if (!(x >= 1 && x == std::floor(x) && x < 1e9))
-      throw RequestError(
-          400,
-          "version",
-          "version = '" + v->substr(0, 32) + "' (must be a positive integer)");
-    version = static_cast<int>(x);
+    version = ParseVersionParam(*v);
   }
   std::shared_ptr<const CachedModel> model;
   if (version) {

@@ -210,13 +210,7 @@ LoadedFamily LoadFamily(FrictionLibrary& lib,
   LoadedFamily out;
   if (req) {
     if (auto v = req->Query("version")) {
-      const double x = ParseNumberParam("version", *v);
-      if (!(x >= 1 && x == std::floor(x) && x < 1e9))
-        throw RequestError(
-            400,
-            "version",
-            "version = '" + *v + "' (must be a positive integer)");
-      out.model = lib.FindModelVersion(material, joint, static_cast<int>(x));
+      out.model = lib.FindModelVersion(material, joint, ParseVersionParam(*v));
     } else {
       out.model = lib.FindModel(material, joint);
     }

@@ -42,4 +42,8 @@ void CheckId(const std::string& id, const std::string& field);
 /// @throws RequestError(400) naming the parameter.
 double ParseNumberParam(const std::string& name, const std::string& value);
 
+/// Parses the `version` query parameter: a model version, an integer in
+/// [1, 1e9). @throws RequestError(400) naming "version".
+int ParseVersionParam(const std::string& value);
+
 }  // namespace frictiond
