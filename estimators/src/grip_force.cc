@@ -88,6 +88,18 @@ int HoldSamples(const EpsTimeModel& t, double hold_s) {
   return 1 + static_cast<int>(std::lround(hold_s / t.dt_s));
 }
 
+// P(any slip during the hold) from the probability p of a slip at one
+// instant: the first passage of the identified process over the hold's
+// samples (one sample: p itself).
+double HoldProbabilityFromInstant(double p,
+                                  const EpsTimeModel& t,
+                                  double hold_s) {
+  const int n = HoldSamples(t, hold_s);
+  if (n == 1) return p;
+  return CalcHoldCrossingProbability(
+      NormalQuantile(p), n, t.phi, t.offset_fraction);
+}
+
 // Per-instant probability floor: from the time model, else the stored
 // quantile levels (and 1 / samples).
 double MinInstantRisk(const StochasticFrictionModel& model) {
@@ -166,12 +178,8 @@ double CalcMinSupportedRisk(const StochasticFrictionModel& model,
   o.hold_s = hold_s;
   std::string why;
   if (!o.IsValid(&why)) throw std::invalid_argument(why);
-  const double p = MinInstantRisk(model);
-  const EpsTimeModel& t = model.eps_time;
-  const int n = HoldSamples(t, hold_s);
-  if (n == 1) return p;
-  return CalcHoldCrossingProbability(
-      NormalQuantile(p), n, t.phi, t.offset_fraction);
+  return HoldProbabilityFromInstant(
+      MinInstantRisk(model), model.eps_time, hold_s);
 }
 
 double CalcHoldSlipProbability(const StochasticFrictionModel& model,
@@ -194,10 +202,7 @@ double CalcHoldSlipProbability(const StochasticFrictionModel& model,
   const double u = load_n / fn_n - mean;  // slip when eps < u
   double p = CalcEpsCdfExtended(model.mu, u, t);
   p = std::clamp(p, 1e-300, 1.0 - 1e-16);
-  const int n = HoldSamples(t, options.hold_s);
-  if (n == 1) return p;
-  return CalcHoldCrossingProbability(
-      NormalQuantile(p), n, t.phi, t.offset_fraction);
+  return HoldProbabilityFromInstant(p, t, options.hold_s);
 }
 
 GripForce CalcGripForce(const StochasticFrictionModel& model,
