@@ -225,16 +225,20 @@ struct ChannelSums {
   }
 };
 
+// A pixel carries colour unless a channel is clipped by the sensor or the
+// pixel is too dark for its chromaticity to mean anything.
+bool CarriesColour(const cv::Vec3b& p) {
+  return std::max({p[0], p[1], p[2]}) < kClipGrey &&
+         p[0] + p[1] + p[2] >= kMinChannelSum;
+}
+
 ChannelSums CalcChannelSums(const cv::Mat& bgr) {
   ChannelSums sums;
   for (int y = 0; y < bgr.rows; ++y) {
     const cv::Vec3b* row = bgr.ptr<cv::Vec3b>(y);
     for (int x = 0; x < bgr.cols; ++x) {
       const cv::Vec3b& p = row[x];
-      if (std::max({p[0], p[1], p[2]}) >= kClipGrey ||
-          p[0] + p[1] + p[2] < kMinChannelSum) {
-        continue;
-      }
+      if (!CarriesColour(p)) continue;
       const int q = Quadrant(x, y, bgr.cols, bgr.rows);
       sums.sum[q] += cv::Vec3d(p[0], p[1], p[2]);
       sums.count[q] += 1;
@@ -265,10 +269,7 @@ std::vector<double> CalcChromaticityHistogram(const cv::Mat& bgr,
     const cv::Vec3b* row = bgr.ptr<cv::Vec3b>(y);
     for (int x = 0; x < bgr.cols; ++x) {
       const cv::Vec3b& p = row[x];
-      if (std::max({p[0], p[1], p[2]}) >= kClipGrey ||
-          p[0] + p[1] + p[2] < kMinChannelSum) {
-        continue;
-      }
+      if (!CarriesColour(p)) continue;
       double* hist = all.data() + Quadrant(x, y, bgr.cols, bgr.rows) *
                                       kChromaBins * kChromaBins;
       const double blue = p[0] * inv[0];
