@@ -16,6 +16,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -594,12 +595,8 @@ class Client {
   }
 
   py::list Materials() {
-    std::vector<MaterialInfo> list;
-    {
-      py::gil_scoped_release nogil;
-      std::lock_guard<std::mutex> lock(mu_);
-      list = client_->ListMaterials();
-    }
+    std::vector<MaterialInfo> list =
+        CallWithoutGil([&](FrictionClient& c) { return c.ListMaterials(); });
     py::list out;
     for (const MaterialInfo& m : list) {
       py::dict d;
@@ -621,12 +618,9 @@ class Client {
     if (version && !(*version > 0))
       throw py::value_error("version = " + std::to_string(*version) +
                             " (must be > 0, or None for the newest)");
-    FetchResult r;
-    {
-      py::gil_scoped_release nogil;
-      std::lock_guard<std::mutex> lock(mu_);
-      r = client_->FetchModelWithInfo(material, version.value_or(0), fingertip);
-    }
+    FetchResult r = CallWithoutGil([&](FrictionClient& c) {
+      return c.FetchModelWithInfo(material, version.value_or(0), fingertip);
+    });
     return Model(std::move(r.model), std::move(r.info));
   }
 
@@ -634,22 +628,15 @@ class Client {
       const std::string& material,
       const std::string& csv,
       const std::vector<std::pair<std::string, std::string>>& params) {
-    UploadReply r;
-    {
-      py::gil_scoped_release nogil;
-      std::lock_guard<std::mutex> lock(mu_);
-      r = client_->UploadStrokes(material, csv, params);
-    }
+    UploadReply r = CallWithoutGil([&](FrictionClient& c) {
+      return c.UploadStrokes(material, csv, params);
+    });
     return ToPython(r.body);
   }
 
   py::list Resync() {
-    std::vector<ResyncEntry> list;
-    {
-      py::gil_scoped_release nogil;
-      std::lock_guard<std::mutex> lock(mu_);
-      list = client_->Resync();
-    }
+    std::vector<ResyncEntry> list =
+        CallWithoutGil([&](FrictionClient& c) { return c.Resync(); });
     py::list out;
     for (const ResyncEntry& e : list) {
       py::dict d;
@@ -664,18 +651,23 @@ class Client {
   }
 
   py::object GetJson(const std::string& path) {
-    nlohmann::json j;
-    {
-      py::gil_scoped_release nogil;
-      std::lock_guard<std::mutex> lock(mu_);
-      j = client_->GetJson(path);
-    }
+    nlohmann::json j =
+        CallWithoutGil([&](FrictionClient& c) { return c.GetJson(path); });
     return ToPython(j);
   }
 
   const ClientOptions& options() const { return client_->options(); }
 
  private:
+  // Runs f(client) without the GIL, one call at a time: FrictionClient is
+  // not thread-safe, and other Python threads run while it waits on I/O.
+  template <class F>
+  std::invoke_result_t<F&, FrictionClient&> CallWithoutGil(F&& f) {
+    py::gil_scoped_release nogil;
+    std::lock_guard<std::mutex> lock(mu_);
+    return f(*client_);
+  }
+
   std::mutex mu_;
   std::unique_ptr<FrictionClient> client_;
 };
