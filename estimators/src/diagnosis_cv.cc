@@ -101,6 +101,45 @@ FoldModels FitFolds(const Eigen::MatrixXd& X,
   return out;
 }
 
+namespace {
+
+// Running sums of held-out absolute errors and Gaussian log-likelihoods.
+struct HeldOutSums {
+  double sae = 0.0;
+  double ll = 0.0;
+};
+
+// Scores fold k's held-out rows of X with the model (beta, sigma) fitted
+// without them: residuals and per-stroke absolute errors into ev, totals
+// into sums.
+void ScoreHeldOutFold(const CvSetup& cv,
+                      const Eigen::MatrixXd& X,
+                      int k,
+                      const Eigen::VectorXd& beta,
+                      double sigma,
+                      CvEval* ev,
+                      HeldOutSums* sums) {
+  const double s2 = std::max(1e-300, sigma * sigma);
+  const double ll0 = -0.5 * std::log(2.0 * M_PI * s2);
+  for (int i = cv.fold_begin[k]; i < cv.fold_begin[k + 1]; ++i) {
+    const double r = cv.y(i) - X.row(i).dot(beta);
+    ev->residuals(i) = r;
+    ev->stroke_sae[cv.stroke_of_entry[i]] += std::fabs(r);
+    sums->sae += std::fabs(r);
+    sums->ll += ll0 - 0.5 * r * r / s2;
+  }
+}
+
+// Per-sample means of the sums over n rows, and whether every residual is
+// finite.
+void FinishEval(int n, const HeldOutSums& sums, CvEval* ev) {
+  ev->mae = sums.sae / std::max(1, n);
+  ev->log_likelihood = sums.ll / std::max(1, n);
+  ev->ok = ev->residuals.allFinite();
+}
+
+}  // namespace
+
 /// Held-out performance of one model.
 
 CvEval Evaluate(const CvSetup& cv, const Eigen::MatrixXd& X) {
@@ -110,22 +149,11 @@ CvEval Evaluate(const CvSetup& cv, const Eigen::MatrixXd& X) {
   const int n = static_cast<int>(X.rows());
   ev.residuals.resize(n);
   ev.stroke_sae.assign(cv.id_of_dense.size(), 0.0);
-  double sae = 0.0, ll = 0.0;
-  for (int k = 0; k < cv.folds; ++k) {
-    const Eigen::VectorXd& beta = ev.models.beta[k];
-    const double s2 = std::max(1e-300, ev.models.sigma[k] * ev.models.sigma[k]);
-    const double ll0 = -0.5 * std::log(2.0 * M_PI * s2);
-    for (int i = cv.fold_begin[k]; i < cv.fold_begin[k + 1]; ++i) {
-      const double r = cv.y(i) - X.row(i).dot(beta);
-      ev.residuals(i) = r;
-      ev.stroke_sae[cv.stroke_of_entry[i]] += std::fabs(r);
-      sae += std::fabs(r);
-      ll += ll0 - 0.5 * r * r / s2;
-    }
-  }
-  ev.mae = sae / std::max(1, n);
-  ev.log_likelihood = ll / std::max(1, n);
-  ev.ok = ev.residuals.allFinite();
+  HeldOutSums sums;
+  for (int k = 0; k < cv.folds; ++k)
+    ScoreHeldOutFold(
+        cv, X, k, ev.models.beta[k], ev.models.sigma[k], &ev, &sums);
+  FinishEval(n, sums, &ev);
   return ev;
 }
 
@@ -206,7 +234,7 @@ CvEval EvaluateWindowScan(const CvSetup& cv,
   ev.models.sigma.resize(cv.folds);
   Eigen::MatrixXd X(n, p + 1);
   X.leftCols(p) = X_cur;
-  double sae = 0.0, ll = 0.0;
+  HeldOutSums sums;
   std::vector<char> train(n, 1);
   Eigen::VectorXd r(n);
   for (int k = 0; k < cv.folds; ++k) {
@@ -225,19 +253,9 @@ CvEval EvaluateWindowScan(const CvSetup& cv,
     if (!m.ok) return CvEval();
     ev.models.beta[k] = m.beta[k];
     ev.models.sigma[k] = m.sigma[k];
-    const double s2 = std::max(1e-300, m.sigma[k] * m.sigma[k]);
-    const double ll0 = -0.5 * std::log(2.0 * M_PI * s2);
-    for (int i = cv.fold_begin[k]; i < cv.fold_begin[k + 1]; ++i) {
-      const double e = cv.y(i) - X.row(i).dot(m.beta[k]);
-      ev.residuals(i) = e;
-      ev.stroke_sae[cv.stroke_of_entry[i]] += std::fabs(e);
-      sae += std::fabs(e);
-      ll += ll0 - 0.5 * e * e / s2;
-    }
+    ScoreHeldOutFold(cv, X, k, m.beta[k], m.sigma[k], &ev, &sums);
   }
-  ev.mae = sae / std::max(1, n);
-  ev.log_likelihood = ll / std::max(1, n);
-  ev.ok = ev.residuals.allFinite();
+  FinishEval(n, sums, &ev);
   return ev;
 }
 
