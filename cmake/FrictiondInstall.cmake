@@ -1,18 +1,32 @@
-# Install proto, estimators and client with an exported CMake package so that
-# an outside project can do:
+# Install proto, estimators, crypto and client with an exported CMake package
+# so that an outside project can do:
 #   find_package(frictiond CONFIG REQUIRED)
 #   target_link_libraries(robot_app PRIVATE frictiond::client)
+# and, when built with LCM, the LCM types and the bounds-checked codec with
+# the signed-message receiver (find_package(frictiond COMPONENTS lcm)):
+#   target_link_libraries(robot_app PRIVATE frictiond::lcm_codec)
 include(CMakePackageConfigHelpers)
 
-install(TARGETS frictiond_estimators frictiond_proto frictiond_client
+install(TARGETS frictiond_estimators frictiond_proto frictiond_crypto frictiond_client
   EXPORT frictiondTargets
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
   LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
   RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
-foreach(_dir estimators proto client)
+foreach(_dir estimators proto crypto client)
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/${_dir}/include/frictiond
     DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 endforeach()
+# Component lcm: the generated message types (frictiond::lcmtypes, headers
+# below) and frictiond::lcm_codec (lcm_codec.h, lcm_signed.h).
+set(FRICTIOND_HAVE_LCM_CODEC OFF)
+if(TARGET frictiond_lcm_codec)
+  set(FRICTIOND_HAVE_LCM_CODEC ON)
+  install(TARGETS frictiond_lcmtypes frictiond_lcm_codec EXPORT frictiondTargets
+    ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+    LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
+  install(DIRECTORY ${PROJECT_SOURCE_DIR}/proto/lcm/include/frictiond
+    DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+endif()
 # The MuJoCo adapter: find_package(frictiond COMPONENTS mujoco).
 if(TARGET frictiond_mujoco)
   install(TARGETS frictiond_mujoco EXPORT frictiondTargets

@@ -94,8 +94,10 @@ class InlineQueue : public httplib::TaskQueue {
 ConnectionStream::ConnectionStream(int fd,
                                    std::string buffered,
                                    SteadyClock::time_point deadline,
-                                   const ConnectionLimits& limits)
+                                   const ConnectionLimits& limits,
+                                   ConnectionAddresses* addresses)
     : fd_(fd),
+      addresses_(addresses),
       buf_(std::move(buffered)),
       deadline_(deadline),
       limits_(limits) {}
@@ -113,6 +115,9 @@ bool ConnectionStream::is_writable() const {
 }
 
 ssize_t ConnectionStream::read(char* ptr, size_t size) {
+  // The client may wait for what was written (100 Continue) before it
+  // sends more.
+  if (pos_ >= buf_.size() && !out_.empty() && !Flush()) return -1;
   while (pos_ >= buf_.size()) {
     buf_.clear();
     pos_ = 0;
@@ -142,26 +147,62 @@ ssize_t ConnectionStream::read(char* ptr, size_t size) {
 
 ssize_t ConnectionStream::write(const char* ptr, size_t size) {
   if (failed_) return -1;
-  if (!WaitFor(fd_, POLLOUT, limits_.write_timeout_ms)) {
-    failed_ = true;
-    return -1;
+  if (out_.size() + size > kWriteBufferBytes) {
+    // A large answer: what is pending, then this piece straight from the
+    // caller's buffer (no copy).
+    if (!Flush()) return -1;
+    if (size >= kWriteBufferBytes)
+      return SendAll(ptr, size) ? static_cast<ssize_t>(size) : -1;
   }
-  ssize_t n;
-  do {
-    n = ::send(fd_, ptr, size, MSG_NOSIGNAL | MSG_DONTWAIT);
-  } while (n < 0 && errno == EINTR);
-  if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) return 0;
-  if (n < 0) failed_ = true;
-  return n;
+  out_.append(ptr, size);
+  return static_cast<ssize_t>(size);
+}
+
+bool ConnectionStream::Flush() {
+  const bool ok = SendAll(out_.data(), out_.size());
+  out_.clear();
+  return ok;
+}
+
+bool ConnectionStream::SendAll(const char* ptr, std::size_t size) {
+  std::size_t sent = 0;
+  while (sent < size && !failed_) {
+    const ssize_t n =
+        ::send(fd_, ptr + sent, size - sent, MSG_NOSIGNAL | MSG_DONTWAIT);
+    if (n > 0) {
+      sent += static_cast<std::size_t>(n);
+    } else if (n < 0 && errno == EINTR) {
+      continue;
+    } else if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {
+      if (!WaitFor(fd_, POLLOUT, limits_.write_timeout_ms)) failed_ = true;
+    } else {
+      failed_ = true;
+    }
+  }
+  return !failed_;
+}
+
+const ConnectionAddresses& ConnectionStream::Addresses() const {
+  ConnectionAddresses& a = addresses_ ? *addresses_ : own_addresses_;
+  if (!a.known) {
+    PeerName(fd_, false, a.remote_ip, a.remote_port);
+    PeerName(fd_, true, a.local_ip, a.local_port);
+    a.known = true;
+  }
+  return a;
 }
 
 void ConnectionStream::get_remote_ip_and_port(std::string& ip,
                                               int& port) const {
-  PeerName(fd_, false, ip, port);
+  const ConnectionAddresses& a = Addresses();
+  ip = a.remote_ip;
+  port = a.remote_port;
 }
 
 void ConnectionStream::get_local_ip_and_port(std::string& ip, int& port) const {
-  PeerName(fd_, true, ip, port);
+  const ConnectionAddresses& a = Addresses();
+  ip = a.local_ip;
+  port = a.local_port;
 }
 
 std::string ConnectionStream::TakeLeftover() {
@@ -393,7 +434,8 @@ void GuardedServer::ServeOne(Conn conn) {
   for (int round = 0;; ++round) {
     const auto deadline =
         conn.started + std::chrono::milliseconds(limits_.request_timeout_ms);
-    ConnectionStream strm(conn.fd, std::move(conn.buf), deadline, limits_);
+    ConnectionStream strm(
+        conn.fd, std::move(conn.buf), deadline, limits_, &conn.addresses);
     const bool close_connection =
         stopping_ || conn.served + 1 >= limits_.keep_alive_max_count;
     bool connection_closed = false;
@@ -405,6 +447,7 @@ void GuardedServer::ServeOne(Conn conn) {
       ok = false;
     }
     g_current_stream = nullptr;
+    if (!strm.Flush()) ok = false;
     if (strm.close_after() && !strm.failed() && !stopping_) {
       // The answer went out before the body was read (413, 415, 401...).
       // Read and drop what the client still sends for a short while, so

@@ -18,7 +18,12 @@
 ///    the queue holds at most `max_queue` connections and at most
 ///    `max_connections` are open; beyond either the client gets 503 at once;
 ///  - a worker serves one request on a ConnectionStream whose reads stop at
-///    the whole-request deadline (`request_timeout_ms` from the first byte).
+///    the whole-request deadline (`request_timeout_ms` from the first byte);
+///  - the answer is collected (up to kWriteBufferBytes) and sent with one
+///    send() when the request is done (or before the stream next reads from
+///    the socket, e.g. after "100 Continue"): httplib writes the status
+///    line and headers and the body separately, and with TCP_NODELAY each
+///    write was a segment of its own that woke the client twice per answer.
 
 #include <atomic>
 #include <chrono>
@@ -51,14 +56,26 @@ struct ConnectionLimits {
   int keep_alive_max_count = 100000;
 };
 
+/// The addresses of a connection's two ends, looked up once per connection
+/// (httplib asks for them on every request).
+struct ConnectionAddresses {
+  bool known = false;
+  std::string remote_ip, local_ip;
+  int remote_port = 0, local_port = 0;
+};
+
 /// One request's view of a connection: first the bytes the gate already
 /// read, then the socket, with reads bounded by the request deadline.
 class ConnectionStream : public httplib::Stream {
  public:
+  /// `addresses` (may be null: looked up on each call) caches the
+  /// connection's addresses across its requests; it must outlive the
+  /// stream.
   ConnectionStream(int fd,
                    std::string buffered,
                    SteadyClock::time_point deadline,
-                   const ConnectionLimits& limits);
+                   const ConnectionLimits& limits,
+                   ConnectionAddresses* addresses = nullptr);
 
   bool is_readable() const override;
   bool is_writable() const override;
@@ -78,14 +95,26 @@ class ConnectionStream : public httplib::Stream {
   void CloseAfterResponse() { close_after_ = true; }
   bool close_after() const { return close_after_; }
 
+  /// Sends what write() collected. False when the connection failed.
+  bool Flush();
+
   /// The stream of the request being served on this thread, or null.
   static ConnectionStream* Current();
 
+  /// Answers up to this size are sent in one piece; a larger write goes
+  /// out at once, after what was collected before it.
+  static constexpr std::size_t kWriteBufferBytes = 64u << 10;
+
  private:
   friend class CurrentStreamScope;
+  bool SendAll(const char* ptr, std::size_t size);
+  const ConnectionAddresses& Addresses() const;
   int fd_;
+  ConnectionAddresses* addresses_;
+  mutable ConnectionAddresses own_addresses_;
   std::string buf_;
   std::size_t pos_ = 0;
+  std::string out_;  ///< written, not yet sent
   SteadyClock::time_point deadline_;
   ConnectionLimits limits_;
   bool timed_out_ = false;
@@ -120,6 +149,7 @@ class GuardedServer : public httplib::Server {
     SteadyClock::time_point started;
     SteadyClock::time_point deadline;
     int served = 0;
+    ConnectionAddresses addresses;
   };
 
   bool process_and_close_socket(socket_t sock) override;

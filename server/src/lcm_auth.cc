@@ -40,6 +40,8 @@ const char* LcmDropReasonName(LcmDropReason r) {
       return "oversized";
     case LcmDropReason::kInternal:
       return "internal";
+    case LcmDropReason::kUnavailable:
+      return "unavailable";
   }
   return "unknown";
 }

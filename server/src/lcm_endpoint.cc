@@ -209,7 +209,8 @@ class LcmEndpointImpl {
                             LcmDropReason::kTruncated,
                             LcmDropReason::kWrongHash,
                             LcmDropReason::kOversized,
-                            LcmDropReason::kInternal})
+                            LcmDropReason::kInternal,
+                            LcmDropReason::kUnavailable})
       Count(DropCounter(r), 0);
     Count("lcm_signed_accepted_total", 0);
     // Tell the fleet about every new model version, from any endpoint.
@@ -346,7 +347,18 @@ class LcmEndpointImpl {
     e.seq = seq;
     e.field = field;
     e.reason = reason;
-    publisher_->Publish(kLcmErrorChannel, e);
+    publisher_->PublishToRobots(kLcmErrorChannel,
+                                e,
+                                ErrorKeysFor(e.robot),
+                                options_.security.send_unsigned);
+  }
+  // Keys of an error_v1: the named robot's own key, else the fleet key
+  // (never one copy per robot: any datagram can cause an error, and it
+  // must not cost the daemon more than one signature).
+  SigningKeys ErrorKeysFor(const std::string& robot) const {
+    if (const std::string* key = auth_.KeyOf(robot)) return {{robot, *key}};
+    if (!fleet_key_.empty()) return {{kLcmFleetKeyId, fleet_key_}};
+    return {};
   }
 
   // --- queries --------------------------------------------------------------
@@ -362,6 +374,8 @@ class LcmEndpointImpl {
       try {
         handler(static_cast<const std::uint8_t*>(rbuf->data),
                 static_cast<std::size_t>(rbuf->data_size));
+      } catch (const StoreUnavailable& e) {
+        PublishUnavailable(type, "", "", 0, 0, -1, e);
       } catch (const std::exception& e) {
         Count(DropCounter(LcmDropReason::kInternal));
         std::cerr << "frictiond: lcm " << type << ": " << e.what() << "\n";
@@ -389,6 +403,42 @@ class LcmEndpointImpl {
       }
     } catch (...) {
       // Even the error report failed (e.g. out of memory): nothing more to do.
+    }
+  }
+  // The store is unavailable (e.g. PostgreSQL away): counted as
+  // reason="unavailable" and answered with an error_v1 whose field is
+  // "(store)"; nothing of the message was stored.
+  void PublishUnavailable(const char* type,
+                          const std::string& request_id,
+                          const std::string& robot,
+                          std::int64_t job_id,
+                          int stroke,
+                          int seq,
+                          const StoreUnavailable& e) {
+    Count(DropCounter(LcmDropReason::kUnavailable));
+    std::cerr << "frictiond: lcm " << type << ": " << e.what() << "\n";
+    PublishError(type,
+                 request_id,
+                 robot,
+                 job_id,
+                 stroke,
+                 seq,
+                 "(store)",
+                 std::string(type) +
+                     " not handled: the library is unavailable (nothing "
+                     "stored; send it again later): " +
+                     e.what());
+  }
+  // HandleChunk, with a store outage answered to the chunk's sender.
+  void HandleChunkOrUnavailable(stroke_chunk_v1 m, const char* type) {
+    const std::string robot = m.robot.substr(0, kMaxTextField);
+    const std::int64_t job_id = m.job_id;
+    const int stroke = m.stroke;
+    const int seq = m.seq;
+    try {
+      HandleChunk(std::move(m), type);
+    } catch (const StoreUnavailable& e) {
+      PublishUnavailable(type, "", robot, job_id, stroke, seq, e);
     }
   }
   void OnQueryBytes(const lcm::ReceiveBuffer* rbuf, const std::string&) {
@@ -555,7 +605,9 @@ class LcmEndpointImpl {
     } catch (const std::exception& e) {
       // The store or library failed (e.g. PostgreSQL away): the robot gets
       // an error reply, the endpoint keeps serving.
-      Count(DropCounter(LcmDropReason::kInternal));
+      Count(DropCounter(dynamic_cast<const StoreUnavailable*>(&e)
+                            ? LcmDropReason::kUnavailable
+                            : LcmDropReason::kInternal));
       return reject("(daemon)",
                     std::string("the library is unavailable (nothing "
                                 "stored; ask again later): ") +
@@ -711,7 +763,7 @@ class LcmEndpointImpl {
                   "(stroke_chunk_v2 on " +
                       std::string(kLcmSignedStrokeChannel) +
                       "; or run it with lcm_allow_unsigned)");
-    HandleChunk(std::move(m), "stroke_chunk_v1");
+    HandleChunkOrUnavailable(std::move(m), "stroke_chunk_v1");
   }
 
   // Signed chunks: robot key, MAC, timestamp and nonce, then as unsigned.
@@ -760,7 +812,7 @@ class LcmEndpointImpl {
     m.fn_n = std::move(s.fn_n);
     m.ft_n = std::move(s.ft_n);
     m.v_mm_s = std::move(s.v_mm_s);
-    HandleChunk(std::move(m), "stroke_chunk_v2");
+    HandleChunkOrUnavailable(std::move(m), "stroke_chunk_v2");
   }
 
   // A chunk whose sender is trusted: validation and reassembly.

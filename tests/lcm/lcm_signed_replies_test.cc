@@ -256,11 +256,81 @@ TEST_F(LcmSignedRepliesTest, FleetKeyCannotWrite) {
   c.last = true;
   c.total_chunks = 1;
   SignLcmMessage(&c, fleet_key_);
-  const std::size_t before = inbox_->errors.size();
   inbox_->lcm().publish(kLcmSignedStrokeChannel, &c);
-  ASSERT_TRUE(inbox_->WaitFor([&] { return inbox_->errors.size() > before; }));
-  EXPECT_EQ(inbox_->errors[before].field, "robot")
-      << inbox_->errors[before].reason;
+  ASSERT_TRUE(WaitSigned(kLcmErrorChannel));
+  // "fleet" has no robot key: the error goes signed with the fleet key.
+  const auto errors = signed_.On(LcmSignedChannel(kLcmErrorChannel));
+  LcmSignedReceiver fleet({{"fleet", fleet_key_}});
+  error_v1 e;
+  const LcmVerifyResult v = fleet.Open(
+      errors[0].bytes.data(), errors[0].bytes.size(), kLcmErrorChannel, &e);
+  ASSERT_TRUE(v.ok()) << v.detail;
+  EXPECT_EQ(e.field, "robot") << e.reason;
+}
+
+// error_v1 goes signed (FRICTIOND_ERROR_V1_SIGNED) with the named robot's
+// key only, and not unsigned (lcm_send_unsigned is off); a robot without a
+// key gets it under the fleet key; a forged error is dropped.
+TEST_F(LcmSignedRepliesTest, ErrorsAreSignedWithTheRobotsKey) {
+  stroke_chunk_v2 c{};
+  c.robot = "robot-a";
+  c.material = "cork";
+  c.fingertip = "default";
+  c.job_id = 12345;  // no such job
+  c.n_samples = 1;
+  c.t_s = {0};
+  c.fn_n = {1};
+  c.ft_n = {0.1};
+  c.v_mm_s = {1};
+  c.last = true;
+  c.total_chunks = 1;
+  SignLcmMessage(&c, key_a_);
+  inbox_->lcm().publish(kLcmSignedStrokeChannel, &c);
+  ASSERT_TRUE(WaitSigned(kLcmErrorChannel));
+  inbox_->WaitFor([] { return false; }, 0.3);  // any second copy arrives
+  const auto errors = signed_.On(LcmSignedChannel(kLcmErrorChannel));
+  ASSERT_EQ(errors.size(), 1u);  // one copy: robot-a's key
+  LcmSignedReceiver robot_a({{"robot-a", key_a_}});
+  LcmSignedReceiver robot_b({{"robot-b", key_b_}});
+  error_v1 e;
+  LcmVerifyResult v = robot_a.Open(
+      errors[0].bytes.data(), errors[0].bytes.size(), kLcmErrorChannel, &e);
+  ASSERT_TRUE(v.ok()) << v.detail;
+  EXPECT_EQ(e.robot, "robot-a");
+  EXPECT_EQ(e.job_id, 12345);
+  EXPECT_EQ(e.field, "job_id") << e.reason;
+  EXPECT_EQ(robot_b
+                .Open(errors[0].bytes.data(),
+                      errors[0].bytes.size(),
+                      kLcmErrorChannel,
+                      &e)
+                .failure,
+            LcmVerifyFailure::kNotForMe);
+  EXPECT_TRUE(inbox_->errors.empty()) << "an error went unsigned";
+
+  // A forged error (another key under robot-a's name) is dropped.
+  error_v1 fake{};
+  fake.robot = "robot-a";
+  fake.field = "job_id";
+  fake.reason = "forged";
+  const signed_message_v1 forged = SignLcmPayload(
+      EncodeLcm(fake), kLcmErrorChannel, "robot-a", RandomBytes(32));
+  const std::string bytes = EncodeLcm(forged);
+  EXPECT_EQ(
+      robot_a.Open(bytes.data(), bytes.size(), kLcmErrorChannel, &e).failure,
+      LcmVerifyFailure::kForged);
+
+  // A malformed query naming no robot: signed with the fleet key.
+  const std::string junk = "\x01\x02\x03";
+  inbox_->lcm().publish(kLcmQueryChannel, junk.data(), junk.size());
+  ASSERT_TRUE(WaitSigned(kLcmErrorChannel, 2));
+  const auto all = signed_.On(LcmSignedChannel(kLcmErrorChannel));
+  LcmSignedReceiver fleet({{"fleet", fleet_key_}});
+  v = fleet.Open(
+      all[1].bytes.data(), all[1].bytes.size(), kLcmErrorChannel, &e);
+  ASSERT_TRUE(v.ok()) << v.detail;
+  EXPECT_EQ(e.message_type, "material_query_v1");
+  EXPECT_TRUE(inbox_->errors.empty()) << "an error went unsigned";
 }
 
 }  // namespace

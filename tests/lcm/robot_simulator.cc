@@ -104,6 +104,7 @@ struct Inbox {
   void Store(const identification_request_v2& m) { requests_v2.push_back(m); }
   void Store(const coverage_progress_v1& m) { progress.push_back(m); }
   void Store(const model_update_v1& m) { updates.push_back(m); }
+  void Store(const error_v1& m) { errors.push_back(m); }
   template <class Message>
   void OnSigned(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
     const std::string unsigned_channel =
@@ -138,7 +139,8 @@ struct Inbox {
     lcm.subscribe(LcmSignedChannel(kLcmModelUpdateChannel),
                   &Inbox::OnSigned<model_update_v1>,
                   this);
-    lcm.subscribe(kLcmErrorChannel, &Inbox::OnError, this);
+    lcm.subscribe(
+        LcmSignedChannel(kLcmErrorChannel), &Inbox::OnSigned<error_v1>, this);
   }
   void SubscribeAll(lcm::LCM& lcm) {
     lcm.subscribe(kLcmReplyChannel, &Inbox::OnReply, this);

@@ -55,6 +55,9 @@ enum class LcmDropReason {
   /// The handler failed (e.g. the store is unavailable): answered with an
   /// error, nothing stored, the endpoint keeps serving.
   kInternal,
+  /// The store is unavailable (e.g. PostgreSQL away): answered with an
+  /// error_v1 whose field is "(store)", nothing stored; send it again later.
+  kUnavailable,
 };
 
 /// "unknown_robot", "forged", ... (the /metrics label).
