@@ -28,7 +28,8 @@ inline constexpr const char* kLcmProgressChannel = "FRICTIOND_PROGRESS_V1";
 /// Daemon -> fleet: model_update_v1.
 inline constexpr const char* kLcmModelUpdateChannel =
     "FRICTIOND_MODEL_UPDATE_V1";
-/// Daemon -> sender: error_v1 (a rejected message, nothing stored).
+/// Daemon -> sender: error_v1 (a rejected message, nothing stored); signed
+/// on the "_SIGNED" channel, unsigned only with lcm_send_unsigned.
 inline constexpr const char* kLcmErrorChannel = "FRICTIOND_ERROR_V1";
 
 }  // namespace frictiond

@@ -2,8 +2,8 @@
 /// @file
 /// Signed messages from the daemon to robots (docs/lcm.md "Signed messages
 /// to robots", docs/security_lcm.md): material_reply_v1,
-/// identification_request_v1/_v2, coverage_progress_v1 and model_update_v1
-/// wrapped in signed_message_v1 on "<channel>_SIGNED":
+/// identification_request_v1/_v2, coverage_progress_v1, model_update_v1
+/// and error_v1 wrapped in signed_message_v1 on "<channel>_SIGNED":
 ///
 ///   hmac = HMAC-SHA256(key of key_id, LCM encoding of the signed_message_v1
 ///                      with every hmac byte 0)
