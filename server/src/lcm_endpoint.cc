@@ -34,7 +34,7 @@
 #include "frictiond/proto/lcm_codec.h"
 #include "frictiond/proto/lcm_signed.h"
 #include "frictiond/proto/lugre_json.h"
-#include "frictiond/server/identification_json.h"
+#include "frictiond/server/model_lookup.h"
 #include "frictiond/stroke_chunk_v1.hpp"
 #include "frictiond/stroke_chunk_v2.hpp"
 
@@ -475,7 +475,7 @@ class LcmEndpointImpl {
     OnQuery(std::move(q));
   }
 
-  void OnQuery(material_query_v1 q) {
+  void OnQuery(const material_query_v1& q) {
     material_reply_v1 reply;
     reply.utime = NowUtime();
     reply.request_id = q.request_id.substr(0, kMaxTextField);
@@ -502,61 +502,47 @@ class LcmEndpointImpl {
       return reject("robot",
                     "robot: " + std::to_string(q.robot.size()) +
                         " characters (at most 128)");
-    if (q.image_size > 0) {
-      // The recognition hook (paper 000 Fig. 11: material recognition);
-      // below its confidence threshold the material is unknown and the
-      // query's material id names the new material.
-      if (!options_.recognize)
-        return reject("image",
-                      "image: this frictiond has no recognition (built "
-                      "without OpenCV); query by material id");
-      ImageRecognition r;
-      try {
-        r = options_.recognize(std::string(q.image.begin(), q.image.end()));
-      } catch (const std::invalid_argument& e) {
-        return reject("image", std::string("image: ") + e.what());
-      }
-      if (!r.unknown && !r.candidates.empty()) {
-        q.material = r.candidates.front().first;
-        reply.material = q.material;
-        reply.recognition_score = r.candidates.front().second;
-      } else if (q.material.empty()) {
-        return reject("material",
-                      "material: empty, and the image was not recognised "
-                      "(unknown material); give the id the new material "
-                      "should get to start its identification");
-      }
-    }
-    try {
-      auto model =
-          library_.RequireModel(q.material, reply.fingertip, "lcm:" + q.robot);
-      reply.status = material_reply_v1::STATUS_KNOWN;
-      reply.model = ToLcm(*model);
-      PublishToRobot(kLcmReplyChannel, reply, reply.robot);
-    } catch (const RequestError& e) {
-      if (e.status() != 404 || !e.extra().contains("identification"))
-        return reject(e.field() == "id" ? "material" : e.field(), e.what());
-      const json& ident = e.extra()["identification"];
-      reply.status = material_reply_v1::STATUS_UNKNOWN;
-      reply.reason = e.what();
-      reply.job_id = ident.value("job_id", std::int64_t{0});
-      PublishToRobot(kLcmReplyChannel, reply, reply.robot);
-      PublishIdentificationRequest(reply.job_id,
-                                   q.request_id,
-                                   q.robot,
-                                   q.material,
-                                   reply.fingertip,
-                                   StrokePlanFromJson(ident.at("stroke")),
-                                   /*stroke=*/0,
-                                   std::nullopt);
-    } catch (const std::exception& e) {
-      // The store or library failed (e.g. PostgreSQL away): the robot gets
-      // an error reply, the endpoint keeps serving.
-      Count(DropCounter(LcmDropReason::kInternal));
-      return reject("(daemon)",
-                    std::string("the library is unavailable (nothing "
-                                "stored; ask again later): ") +
-                        e.what());
+    // The lookup (recognition, model or identification request) is the
+    // service's; the endpoint answers.
+    const ModelLookup found = LookUpModelForQuery(
+        library_,
+        options_.recognize,
+        q.material,
+        reply.fingertip,
+        q.image_size > 0 ? std::string(q.image.begin(), q.image.end())
+                         : std::string(),
+        "lcm:" + q.robot);
+    reply.material = found.material;
+    reply.recognition_score = found.recognition_score;
+    switch (found.outcome) {
+      case ModelLookup::Outcome::kKnown:
+        reply.status = material_reply_v1::STATUS_KNOWN;
+        reply.model = ToLcm(*found.model);
+        PublishToRobot(kLcmReplyChannel, reply, reply.robot);
+        return;
+      case ModelLookup::Outcome::kUnknown:
+        reply.status = material_reply_v1::STATUS_UNKNOWN;
+        reply.reason = found.message;
+        reply.job_id = found.identification.requested
+                           ? found.identification.job_id
+                           : std::int64_t{0};
+        PublishToRobot(kLcmReplyChannel, reply, reply.robot);
+        PublishIdentificationRequest(reply.job_id,
+                                     q.request_id,
+                                     q.robot,
+                                     found.material,
+                                     reply.fingertip,
+                                     found.identification.plan,
+                                     /*stroke=*/0,
+                                     std::nullopt);
+        return;
+      case ModelLookup::Outcome::kRejected:
+        return reject(found.field, found.message);
+      case ModelLookup::Outcome::kUnavailable:
+        // The store or library failed (e.g. PostgreSQL away): the robot
+        // gets an error reply, the endpoint keeps serving.
+        Count(DropCounter(LcmDropReason::kInternal));
+        return reject(found.field, found.message);
     }
   }
 

@@ -11,6 +11,7 @@
 #include "frictiond/estimators/stroke_csv.h"
 #include "frictiond/proto/actuator_json.h"
 #include "frictiond/server/identification_json.h"
+#include "frictiond/server/model_lookup.h"
 #include "frictiond/server/text.h"
 
 namespace frictiond {
@@ -307,27 +308,14 @@ std::shared_ptr<const CachedModel> FrictionLibrary::RequireModel(
     const std::string& material,
     const std::string& fingertip,
     const std::string& requested_by) {
-  CheckId(material, "id");
-  CheckId(fingertip, "fingertip");
-  if (auto m = FindModel(material, fingertip)) return m;
-  const bool known = store_->GetMaterial(material).has_value();
+  const ModelLookup found =
+      LookUpModel(*this, material, fingertip, requested_by);
+  if (found.model) return found.model;
   json extra = json{{"material", material},
                     {"fingertip", fingertip},
-                    {"known_material", known}};
-  const IdentificationRequest request =
-      RequestIdentification(material, fingertip, requested_by);
-  extra["identification"] = IdentificationRequestToJson(request);
-  const std::string outcome =
-      request.requested
-          ? "an identification was requested"
-          : "no identification was recorded (" + request.reason + ")";
-  throw RequestError(404,
-                     "id",
-                     known ? "material '" + material +
-                                 "' has no friction model for fingertip '" +
-                                 fingertip + "' yet: " + outcome
-                           : "unknown material '" + material + "': " + outcome,
-                     extra);
+                    {"known_material", found.known_material}};
+  extra["identification"] = IdentificationRequestToJson(found.identification);
+  throw RequestError(404, "id", found.message, extra);
 }
 
 StrokeData FrictionLibrary::LoadStrokes(
