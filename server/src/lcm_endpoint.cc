@@ -10,9 +10,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <cmath>
 #include <iostream>
-#include <map>
 #include <mutex>
 #include <random>
 #include <thread>
@@ -25,18 +23,17 @@
 #include "frictiond/coverage_progress_v1.hpp"
 #include "frictiond/crypto/lcm_signing.h"
 #include "frictiond/error_v1.hpp"
-#include "frictiond/identification_request_v1.hpp"
-#include "frictiond/identification_request_v2.hpp"
 #include "frictiond/material_query_v1.hpp"
 #include "frictiond/material_reply_v1.hpp"
 #include "frictiond/model_update_v1.hpp"
 #include "frictiond/proto/lcm_channels.h"
 #include "frictiond/proto/lcm_codec.h"
 #include "frictiond/proto/lcm_signed.h"
-#include "frictiond/proto/lugre_json.h"
 #include "frictiond/server/model_lookup.h"
 #include "frictiond/stroke_chunk_v1.hpp"
 #include "frictiond/stroke_chunk_v2.hpp"
+
+#include "lcm_messages.h"
 
 namespace frictiond {
 
@@ -44,7 +41,7 @@ using nlohmann::json;
 
 namespace {
 
-constexpr std::size_t kMaxTextField = 128;
+constexpr std::size_t kMaxTextField = internal::kLcmMaxTextField;
 
 std::int64_t NowUtime() {
   return std::chrono::duration_cast<std::chrono::microseconds>(
@@ -67,59 +64,6 @@ std::string FieldOf(const std::string& message) {
 
 // Job whose ingest is running on this thread, for the model listener.
 thread_local std::int64_t tl_ingesting_job = 0;
-
-/// Encodes a model version as friction_model_v1.
-friction_model_v1 ToLcm(const CachedModel& m) {
-  friction_model_v1 out;
-  out.material = m.set.material;
-  out.fingertip = m.set.fingertip;
-  out.version = m.set.version;
-  out.created_at = m.set.created_at;
-  out.n_terms = 0;
-  out.sigma_eps = out.r2 = out.mu_coulomb = std::nan("");
-  out.likelihood_c1 = out.likelihood_c2 = std::nan("");
-  out.samples = 0;
-  out.n_quantiles = 0;
-  if (m.set.stochastic) {
-    const StochasticFrictionModel& s = *m.set.stochastic;
-    out.n_terms = static_cast<int32_t>(s.mu.terms.size());
-    for (std::size_t i = 0; i < s.mu.terms.size(); ++i) {
-      out.term_names.push_back(s.mu.terms[i].Name());
-      out.coefficients.push_back(static_cast<Eigen::Index>(i) < s.mu.beta.size()
-                                     ? s.mu.beta[i]
-                                     : std::nan(""));
-      out.std_errors.push_back(
-          static_cast<Eigen::Index>(i) < s.mu.std_err.size() ? s.mu.std_err[i]
-                                                             : std::nan(""));
-    }
-    out.sigma_eps = s.mu.sigma_eps;
-    out.r2 = s.mu.r2;
-    out.samples = s.mu.samples;
-    const std::vector<double>& levels = EpsQuantileLevels();
-    if (s.mu.eps_quantiles.size() == levels.size()) {
-      out.n_quantiles = static_cast<int32_t>(levels.size());
-      out.eps_levels = levels;
-      out.eps_quantiles = s.mu.eps_quantiles;
-    }
-    out.mu_coulomb = s.mu_coulomb;
-    if (s.likelihood.valid) {
-      out.likelihood_c1 = s.likelihood.c1;
-      out.likelihood_c2 = s.likelihood.c2;
-    }
-  }
-  out.has_lugre = false;
-  for (double& x : out.lugre_theta) x = std::nan("");
-  if (auto it = m.set.other.find(kLuGreFamilyKey); it != m.set.other.end()) {
-    try {
-      const LuGreFamily f = LuGreFromJson(*it);
-      for (int i = 0; i < 6; ++i) out.lugre_theta[i] = f.theta[i];
-      out.has_lugre = true;
-    } catch (const std::exception&) {
-      // A family this build cannot read is left out of the LCM message.
-    }
-  }
-  return out;
-}
 
 }  // namespace
 
@@ -222,7 +166,7 @@ class LcmEndpointImpl {
           doc.is_object() && doc.contains("reason") && doc["reason"].is_string()
               ? doc["reason"].get<std::string>()
               : std::string();
-      u.model = ToLcm(m);
+      u.model = ModelToLcm(m);
       p->PublishToRobots(kLcmModelUpdateChannel, u, keys, send_unsigned);
     });
   }
@@ -517,7 +461,7 @@ class LcmEndpointImpl {
     switch (found.outcome) {
       case ModelLookup::Outcome::kKnown:
         reply.status = material_reply_v1::STATUS_KNOWN;
-        reply.model = ToLcm(*found.model);
+        reply.model = ModelToLcm(*found.model);
         PublishToRobot(kLcmReplyChannel, reply, reply.robot);
         return;
       case ModelLookup::Outcome::kUnknown:
@@ -555,67 +499,19 @@ class LcmEndpointImpl {
                                     const StrokePlan& plan,
                                     int stroke,
                                     const std::optional<SpanRect>& missing) {
-    identification_request_v1 r;
-    r.utime = NowUtime();
-    r.job_id = job_id;
-    r.stroke = stroke;
-    r.request_id = request_id.substr(0, kMaxTextField);
-    r.robot = robot.substr(0, kMaxTextField);
-    r.material = material;
-    r.fingertip = fingertip;
-    const SpanRect span = missing ? *missing : plan.span();
-    r.fn_min_n = span.fn_min_n;
-    r.fn_max_n = span.fn_max_n;
-    r.v_min_mm_s = span.v_min_mm_s;
-    r.v_max_mm_s = span.v_max_mm_s;
-    r.max_duration_s = plan.max_duration_s;
-    r.min_span_pct = plan.min_span_pct;
-    r.follow_up = missing.has_value();
-    r.instructions =
-        std::string(missing ? "follow-up: the strokes so far covered too "
-                              "little of the Fn-v span; "
-                            : "") +
-        "slide the fingertip in repeated strokes with rests between them, "
-        "sweeping normal force over [fn_min_n, fn_max_n] and peak speed over "
-        "[v_min_mm_s, v_max_mm_s]; stream the samples as stroke_chunk_v1 on " +
-        kLcmStrokeChannel + " with job_id " + std::to_string(job_id) +
-        " and stroke " + std::to_string(stroke);
-    PublishToRobot(kLcmIdentRequestChannel, r, r.robot);
-    // v2: the same plus the LuGre pair (a plan stored before the pair
-    // existed asks for none).
-    identification_request_v2 r2;
-    r2.utime = r.utime;
-    r2.job_id = r.job_id;
-    r2.stroke = r.stroke;
-    r2.request_id = r.request_id;
-    r2.robot = r.robot;
-    r2.material = r.material;
-    r2.fingertip = r.fingertip;
-    r2.fn_min_n = r.fn_min_n;
-    r2.fn_max_n = r.fn_max_n;
-    r2.v_min_mm_s = r.v_min_mm_s;
-    r2.v_max_mm_s = r.v_max_mm_s;
-    r2.max_duration_s = r.max_duration_s;
-    r2.min_span_pct = r.min_span_pct;
-    r2.follow_up = r.follow_up;
-    r2.instructions = r.instructions;
-    const std::optional<LuGrePairPlan>& lugre = plan.lugre;
-    r2.lugre_pair = lugre.has_value();
-    const double nan = std::nan("");
-    r2.lugre_fn_n = lugre ? lugre->fn_n : nan;
-    r2.lugre_slow_accel_mm_s2 = lugre ? lugre->slow_accel_mm_s2 : nan;
-    r2.lugre_slow_peak_mm_s = lugre ? lugre->slow_peak_mm_s : nan;
-    r2.lugre_fast_strokes = lugre ? lugre->fast_strokes : 0;
-    r2.lugre_fast_accel_mm_s2 = lugre ? lugre->fast_accel_mm_s2 : nan;
-    r2.lugre_fast_peak_mm_s = lugre ? lugre->fast_peak_mm_s : nan;
-    r2.lugre_rest_s = lugre ? lugre->rest_s : nan;
-    if (lugre)
-      r2.instructions +=
-          "; then, at normal force lugre_fn_n, the LuGre pair: a slow "
-          "triangle to lugre_slow_peak_mm_s at lugre_slow_accel_mm_s2 and "
-          "lugre_fast_strokes fast triangles to lugre_fast_peak_mm_s at "
-          "lugre_fast_accel_mm_s2, lugre_rest_s apart, in the same stroke";
-    PublishToRobot(kLcmIdentRequestV2Channel, r2, r2.robot);
+    const IdentificationRequestMessages m =
+        IdentificationRequestToLcm(NowUtime(),
+                                   job_id,
+                                   request_id,
+                                   robot,
+                                   material,
+                                   fingertip,
+                                   plan,
+                                   stroke,
+                                   missing);
+    PublishToRobot(kLcmIdentRequestChannel, m.v1, m.v1.robot);
+    // v2: the same plus the LuGre pair.
+    PublishToRobot(kLcmIdentRequestV2Channel, m.v2, m.v2.robot);
   }
 
   // --- stroke chunks
