@@ -10,12 +10,9 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <cmath>
 #include <iostream>
-#include <map>
 #include <mutex>
 #include <random>
-#include <set>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -26,20 +23,17 @@
 #include "frictiond/coverage_progress_v1.hpp"
 #include "frictiond/crypto/lcm_signing.h"
 #include "frictiond/error_v1.hpp"
-#include "frictiond/estimators/preprocessing.h"
-#include "frictiond/estimators/span_coverage.h"
-#include "frictiond/estimators/stroke_csv.h"
-#include "frictiond/identification_request_v1.hpp"
-#include "frictiond/identification_request_v2.hpp"
 #include "frictiond/material_query_v1.hpp"
 #include "frictiond/material_reply_v1.hpp"
 #include "frictiond/model_update_v1.hpp"
 #include "frictiond/proto/lcm_channels.h"
 #include "frictiond/proto/lcm_codec.h"
 #include "frictiond/proto/lcm_signed.h"
-#include "frictiond/proto/lugre_json.h"
+#include "frictiond/server/model_lookup.h"
 #include "frictiond/stroke_chunk_v1.hpp"
 #include "frictiond/stroke_chunk_v2.hpp"
+
+#include "lcm_messages.h"
 
 namespace frictiond {
 
@@ -47,10 +41,7 @@ using nlohmann::json;
 
 namespace {
 
-constexpr std::size_t kMaxTextField = 128;
-// Job claims are renewed this often while a job's chunks arrive (the store
-// lets another daemon take a claim not renewed for 60 s).
-constexpr double kClaimRenewS = 10.0;
+constexpr std::size_t kMaxTextField = internal::kLcmMaxTextField;
 
 std::int64_t NowUtime() {
   return std::chrono::duration_cast<std::chrono::microseconds>(
@@ -73,59 +64,6 @@ std::string FieldOf(const std::string& message) {
 
 // Job whose ingest is running on this thread, for the model listener.
 thread_local std::int64_t tl_ingesting_job = 0;
-
-/// Encodes a model version as friction_model_v1.
-friction_model_v1 ToLcm(const CachedModel& m) {
-  friction_model_v1 out;
-  out.material = m.set.material;
-  out.fingertip = m.set.fingertip;
-  out.version = m.set.version;
-  out.created_at = m.set.created_at;
-  out.n_terms = 0;
-  out.sigma_eps = out.r2 = out.mu_coulomb = std::nan("");
-  out.likelihood_c1 = out.likelihood_c2 = std::nan("");
-  out.samples = 0;
-  out.n_quantiles = 0;
-  if (m.set.stochastic) {
-    const StochasticFrictionModel& s = *m.set.stochastic;
-    out.n_terms = static_cast<int32_t>(s.mu.terms.size());
-    for (std::size_t i = 0; i < s.mu.terms.size(); ++i) {
-      out.term_names.push_back(s.mu.terms[i].Name());
-      out.coefficients.push_back(static_cast<Eigen::Index>(i) < s.mu.beta.size()
-                                     ? s.mu.beta[i]
-                                     : std::nan(""));
-      out.std_errors.push_back(
-          static_cast<Eigen::Index>(i) < s.mu.std_err.size() ? s.mu.std_err[i]
-                                                             : std::nan(""));
-    }
-    out.sigma_eps = s.mu.sigma_eps;
-    out.r2 = s.mu.r2;
-    out.samples = s.mu.samples;
-    const std::vector<double>& levels = EpsQuantileLevels();
-    if (s.mu.eps_quantiles.size() == levels.size()) {
-      out.n_quantiles = static_cast<int32_t>(levels.size());
-      out.eps_levels = levels;
-      out.eps_quantiles = s.mu.eps_quantiles;
-    }
-    out.mu_coulomb = s.mu_coulomb;
-    if (s.likelihood.valid) {
-      out.likelihood_c1 = s.likelihood.c1;
-      out.likelihood_c2 = s.likelihood.c2;
-    }
-  }
-  out.has_lugre = false;
-  for (double& x : out.lugre_theta) x = std::nan("");
-  if (auto it = m.set.other.find(kLuGreFamilyKey); it != m.set.other.end()) {
-    try {
-      const LuGreFamily f = LuGreFromJson(*it);
-      for (int i = 0; i < 6; ++i) out.lugre_theta[i] = f.theta[i];
-      out.has_lugre = true;
-    } catch (const std::exception&) {
-      // A family this build cannot read is left out of the LCM message.
-    }
-  }
-  return out;
-}
 
 }  // namespace
 
@@ -183,7 +121,8 @@ class LcmEndpointImpl {
         options_(std::move(options)),
         lcm_(options_.url),
         reassembler_(options_.reassembly),
-        auth_(WithoutFleetKey(options_.security)) {
+        auth_(WithoutFleetKey(options_.security)),
+        collector_(library_, CollectorOptions(options_)) {
     if (auto it = options_.security.keys.find(kLcmFleetKeyId);
         it != options_.security.keys.end())
       fleet_key_ = it->second;
@@ -192,8 +131,6 @@ class LcmEndpointImpl {
           "--lcm " + options_.url +
           ": cannot create the LCM provider (for udpm on loopback: ip link "
           "set lo multicast on; ip route add 224.0.0.0/4 dev lo)");
-    if (options_.max_strokes_per_job < 1)
-      throw std::invalid_argument("max_strokes_per_job must be >= 1");
     publisher_ = std::make_shared<LcmPublisher>(&lcm_);
     lcm_.subscribe(kLcmQueryChannel, &LcmEndpointImpl::OnQueryBytes, this);
     lcm_.subscribe(kLcmStrokeChannel, &LcmEndpointImpl::OnChunkBytes, this);
@@ -230,7 +167,7 @@ class LcmEndpointImpl {
           doc.is_object() && doc.contains("reason") && doc["reason"].is_string()
               ? doc["reason"].get<std::string>()
               : std::string();
-      u.model = ToLcm(m);
+      u.model = ModelToLcm(m);
       p->PublishToRobots(kLcmModelUpdateChannel, u, keys, send_unsigned);
     });
   }
@@ -272,12 +209,16 @@ class LcmEndpointImpl {
   }
 
  private:
-  // Per-job state of this process (the job itself lives in the Store).
-  struct JobProgress {
-    std::vector<StrokeData> strokes;  // complete strokes not yet ingested
-    std::vector<double> slip_fn_n, slip_v_mm_s;
-    std::set<int> done_strokes;  // reassembled (duplicates are ignored)
-  };
+  // Job claims are renewed this often while a job's chunks arrive (the
+  // store lets another daemon take a claim not renewed for 60 s).
+  static JobStrokeCollectorOptions CollectorOptions(
+      const LcmEndpointOptions& o) {
+    JobStrokeCollectorOptions c;
+    c.max_strokes_per_job = o.max_strokes_per_job;
+    c.claim_renew_s = 10.0;
+    c.worker_id = o.worker_id.empty() ? MakeWorkerId() : o.worker_id;
+    return c;
+  }
 
   void Run() {
     while (!stop_) {
@@ -528,7 +469,7 @@ class LcmEndpointImpl {
     OnQuery(std::move(q));
   }
 
-  void OnQuery(material_query_v1 q) {
+  void OnQuery(const material_query_v1& q) {
     material_reply_v1 reply;
     reply.utime = NowUtime();
     reply.request_id = q.request_id.substr(0, kMaxTextField);
@@ -555,63 +496,48 @@ class LcmEndpointImpl {
       return reject("robot",
                     "robot: " + std::to_string(q.robot.size()) +
                         " characters (at most 128)");
-    if (q.image_size > 0) {
-      // The recognition hook (paper 000 Fig. 11: material recognition);
-      // below its confidence threshold the material is unknown and the
-      // query's material id names the new material.
-      if (!options_.recognize)
-        return reject("image",
-                      "image: this frictiond has no recognition (built "
-                      "without OpenCV); query by material id");
-      ImageRecognition r;
-      try {
-        r = options_.recognize(std::string(q.image.begin(), q.image.end()));
-      } catch (const std::invalid_argument& e) {
-        return reject("image", std::string("image: ") + e.what());
-      }
-      if (!r.unknown && !r.candidates.empty()) {
-        q.material = r.candidates.front().first;
-        reply.material = q.material;
-        reply.recognition_score = r.candidates.front().second;
-      } else if (q.material.empty()) {
-        return reject("material",
-                      "material: empty, and the image was not recognised "
-                      "(unknown material); give the id the new material "
-                      "should get to start its identification");
-      }
-    }
-    try {
-      auto model =
-          library_.RequireModel(q.material, reply.fingertip, "lcm:" + q.robot);
-      reply.status = material_reply_v1::STATUS_KNOWN;
-      reply.model = ToLcm(*model);
-      PublishToRobot(kLcmReplyChannel, reply, reply.robot);
-    } catch (const RequestError& e) {
-      if (e.status() != 404 || !e.extra().contains("identification"))
-        return reject(e.field() == "id" ? "material" : e.field(), e.what());
-      const json& ident = e.extra()["identification"];
-      reply.status = material_reply_v1::STATUS_UNKNOWN;
-      reply.reason = e.what();
-      reply.job_id = ident.value("job_id", std::int64_t{0});
-      PublishToRobot(kLcmReplyChannel, reply, reply.robot);
-      PublishIdentificationRequest(reply.job_id,
-                                   q.request_id,
-                                   q.robot,
-                                   q.material,
-                                   reply.fingertip,
-                                   ident.at("stroke"),
-                                   /*stroke=*/0,
-                                   std::nullopt);
-    } catch (const std::exception& e) {
-      // The store or library failed (e.g. PostgreSQL away): the robot gets
-      // an error reply, the endpoint keeps serving.
-      Count(DropCounter(dynamic_cast<const StoreUnavailable*>(&e)
-                            ? LcmDropReason::kUnavailable
-                            : LcmDropReason::kInternal));
-      return reject("(daemon)",
-                    std::string("the library is unavailable (nothing "
-                                "stored; ask again later): ") +
-                        e.what());
+    // The lookup (recognition, model or identification request) is the
+    // service's; the endpoint answers.
+    const ModelLookup found = LookUpModelForQuery(
+        library_,
+        options_.recognize,
+        q.material,
+        reply.fingertip,
+        q.image_size > 0 ? std::string(q.image.begin(), q.image.end())
+                         : std::string(),
+        "lcm:" + q.robot);
+    reply.material = found.material;
+    reply.recognition_score = found.recognition_score;
+    switch (found.outcome) {
+      case ModelLookup::Outcome::kKnown:
+        reply.status = material_reply_v1::STATUS_KNOWN;
+        reply.model = ModelToLcm(*found.model);
+        PublishToRobot(kLcmReplyChannel, reply, reply.robot);
+        return;
+      case ModelLookup::Outcome::kUnknown:
+        reply.status = material_reply_v1::STATUS_UNKNOWN;
+        reply.reason = found.message;
+        reply.job_id = found.identification.requested
+                           ? found.identification.job_id
+                           : std::int64_t{0};
+        PublishToRobot(kLcmReplyChannel, reply, reply.robot);
+        PublishIdentificationRequest(reply.job_id,
+                                     q.request_id,
+                                     q.robot,
+                                     found.material,
+                                     reply.fingertip,
+                                     found.identification.plan,
+                                     /*stroke=*/0,
+                                     std::nullopt);
+        return;
+      case ModelLookup::Outcome::kRejected:
+        return reject(found.field, found.message);
+      case ModelLookup::Outcome::kUnavailable:
+        // The store or library failed (e.g. PostgreSQL away): the robot
+        // gets an error reply, the endpoint keeps serving.
+        Count(DropCounter(found.store_outage ? LcmDropReason::kUnavailable
+                                             : LcmDropReason::kInternal));
+        return reject(found.field, found.message);
     }
   }
 
@@ -621,87 +547,22 @@ class LcmEndpointImpl {
                                     const std::string& robot,
                                     const std::string& material,
                                     const std::string& fingertip,
-                                    const json& plan,
+                                    const StrokePlan& plan,
                                     int stroke,
                                     const std::optional<SpanRect>& missing) {
-    identification_request_v1 r;
-    r.utime = NowUtime();
-    r.job_id = job_id;
-    r.stroke = stroke;
-    r.request_id = request_id.substr(0, kMaxTextField);
-    r.robot = robot.substr(0, kMaxTextField);
-    r.material = material;
-    r.fingertip = fingertip;
-    const SpanRect span = missing ? *missing : PlanSpan(plan);
-    r.fn_min_n = span.fn_min_n;
-    r.fn_max_n = span.fn_max_n;
-    r.v_min_mm_s = span.v_min_mm_s;
-    r.v_max_mm_s = span.v_max_mm_s;
-    r.max_duration_s = plan.value("max_duration_s", 120.0);
-    r.min_span_pct = plan.value("min_span_pct", 50.0);
-    r.follow_up = missing.has_value();
-    r.instructions =
-        std::string(missing ? "follow-up: the strokes so far covered too "
-                              "little of the Fn-v span; "
-                            : "") +
-        "slide the fingertip in repeated strokes with rests between them, "
-        "sweeping normal force over [fn_min_n, fn_max_n] and peak speed over "
-        "[v_min_mm_s, v_max_mm_s]; stream the samples as stroke_chunk_v1 on " +
-        kLcmStrokeChannel + " with job_id " + std::to_string(job_id) +
-        " and stroke " + std::to_string(stroke);
-    PublishToRobot(kLcmIdentRequestChannel, r, r.robot);
-    // v2: the same plus the LuGre pair (a plan stored before the pair
-    // existed asks for none).
-    identification_request_v2 r2;
-    r2.utime = r.utime;
-    r2.job_id = r.job_id;
-    r2.stroke = r.stroke;
-    r2.request_id = r.request_id;
-    r2.robot = r.robot;
-    r2.material = r.material;
-    r2.fingertip = r.fingertip;
-    r2.fn_min_n = r.fn_min_n;
-    r2.fn_max_n = r.fn_max_n;
-    r2.v_min_mm_s = r.v_min_mm_s;
-    r2.v_max_mm_s = r.v_max_mm_s;
-    r2.max_duration_s = r.max_duration_s;
-    r2.min_span_pct = r.min_span_pct;
-    r2.follow_up = r.follow_up;
-    r2.instructions = r.instructions;
-    const json* lugre = plan.contains("lugre") && plan["lugre"].is_object()
-                            ? &plan["lugre"]
-                            : nullptr;
-    r2.lugre_pair = lugre != nullptr;
-    const double nan = std::nan("");
-    auto num = [&](const char* group, const char* key) {
-      if (!lugre) return nan;
-      const json& g = group ? lugre->value(group, json::object()) : *lugre;
-      return g.value(key, nan);
-    };
-    r2.lugre_fn_n = num(nullptr, "fn_n");
-    r2.lugre_slow_accel_mm_s2 = num("slow", "accel_mm_s2");
-    r2.lugre_slow_peak_mm_s = num("slow", "peak_mm_s");
-    r2.lugre_fast_strokes =
-        lugre ? lugre->value("fast", json::object()).value("strokes", 0) : 0;
-    r2.lugre_fast_accel_mm_s2 = num("fast", "accel_mm_s2");
-    r2.lugre_fast_peak_mm_s = num("fast", "peak_mm_s");
-    r2.lugre_rest_s = num(nullptr, "rest_s");
-    if (lugre)
-      r2.instructions +=
-          "; then, at normal force lugre_fn_n, the LuGre pair: a slow "
-          "triangle to lugre_slow_peak_mm_s at lugre_slow_accel_mm_s2 and "
-          "lugre_fast_strokes fast triangles to lugre_fast_peak_mm_s at "
-          "lugre_fast_accel_mm_s2, lugre_rest_s apart, in the same stroke";
-    PublishToRobot(kLcmIdentRequestV2Channel, r2, r2.robot);
-  }
-
-  static SpanRect PlanSpan(const json& plan) {
-    SpanRect s;
-    s.fn_min_n = plan.at("fn_n").at(0).get<double>();
-    s.fn_max_n = plan.at("fn_n").at(1).get<double>();
-    s.v_min_mm_s = plan.at("v_mm_s").at(0).get<double>();
-    s.v_max_mm_s = plan.at("v_mm_s").at(1).get<double>();
-    return s;
+    const IdentificationRequestMessages m =
+        IdentificationRequestToLcm(NowUtime(),
+                                   job_id,
+                                   request_id,
+                                   robot,
+                                   material,
+                                   fingertip,
+                                   plan,
+                                   stroke,
+                                   missing);
+    PublishToRobot(kLcmIdentRequestChannel, m.v1, m.v1.robot);
+    // v2: the same plus the LuGre pair.
+    PublishToRobot(kLcmIdentRequestV2Channel, m.v2, m.v2.robot);
   }
 
   // --- stroke chunks
@@ -825,48 +686,20 @@ class LcmEndpointImpl {
       return reject("robot",
                     "robot: " + std::to_string(m.robot.size()) +
                         " characters (at most 128)");
-    // The job must exist, be open and belong to the named pair.
-    std::optional<IdentificationJob> job;
-    if (m.job_id > 0) job = library_.store().GetJob(m.job_id);
-    if (!job)
-      return reject("job_id",
-                    "job_id = " + std::to_string(m.job_id) +
-                        " (no such identification job; query the "
-                        "material first)");
-    if (job->state == "fitted" || job->state == "failed")
-      return reject("job_id",
-                    "job_id = " + std::to_string(m.job_id) + " (the job is " +
-                        job->state + "; query the material again)");
-    if (m.material != job->material)
-      return reject("material",
-                    "material = '" + m.material.substr(0, 64) + "' (job " +
-                        std::to_string(job->id) + " is for '" + job->material +
-                        "')");
-    if (fingertip != job->fingertip)
-      return reject("fingertip",
-                    "fingertip = '" + fingertip.substr(0, 64) + "' (job " +
-                        std::to_string(job->id) + " is for '" + job->fingertip +
-                        "')");
-    // In a fleet every daemon hears the chunks; the one that claims the job
-    // (once, in the shared store) acts on it, the others stay silent.
-    // The claim is a lease, renewed while chunks arrive, so that the job of
-    // a daemon that died is taken over (Store::ClaimJob).
-    const double now_s = NowMonotonicS();
-    auto claim = claimed_.find(job->id);
-    if (claim == claimed_.end() || now_s - claim->second > kClaimRenewS) {
-      if (!library_.store().ClaimJob(job->id, worker_id_)) {
-        if (claim != claimed_.end()) claimed_.erase(claim);
+    // The job must exist, be open and belong to the named pair; this
+    // daemon must hold its claim (in a fleet one daemon acts on a job).
+    std::string field, why;
+    std::optional<IdentificationJob> job = library_.jobs().FindOpenFor(
+        m.job_id, m.material, fingertip, &field, &why);
+    if (!job) return reject(field, why);
+    switch (collector_.Admit(*job, m.stroke, NowMonotonicS(), &field, &why)) {
+      case ChunkAdmission::kAccept:
+        break;
+      case ChunkAdmission::kIgnore:
         return;
-      }
-      claimed_[job->id] = now_s;
+      case ChunkAdmission::kReject:
+        return reject(field, why);
     }
-    JobProgress& jp = ProgressOf(*job);
-    if (jp.done_strokes.count(m.stroke)) return;  // late duplicate
-    if (m.stroke >= options_.max_strokes_per_job)
-      return reject("stroke",
-                    "stroke = " + std::to_string(m.stroke) + " (at most " +
-                        std::to_string(options_.max_strokes_per_job) +
-                        " strokes per job)");
     StrokeChunk c;
     c.job_id = m.job_id;
     c.stroke = m.stroke;
@@ -884,21 +717,14 @@ class LcmEndpointImpl {
       return reject(FieldOf(e.what()), e.what());
     }
     if (outcome == ChunkOutcome::kDuplicate) return;
-    if (job->state == "requested") {
-      library_.store().UpdateJob(job->id,
-                                 "stroking",
-                                 "receiving stroke " +
-                                     std::to_string(m.stroke) + " from " +
-                                     (m.robot.empty() ? "a robot" : m.robot));
-      job->state = "stroking";
-    }
+    collector_.NoteReceiving(&*job, m.stroke, m.robot);
     const StrokeKey key{c.job_id, c.stroke};
     if (outcome == ChunkOutcome::kAccepted) {
       if (auto p = reassembler_.Progress(key))
         PublishProgress(*job,
                         m.robot,
                         *p,
-                        "stroking",
+                        JobStateName(JobState::kStroking),
                         -1,
                         0,
                         "chunk " + std::to_string(c.seq) + " received",
@@ -937,7 +763,7 @@ class LcmEndpointImpl {
   }
 
   void OnReassemblyEvent(const ReassemblyEvent& e) {
-    auto job = library_.store().GetJob(e.progress.key.job_id);
+    auto job = library_.jobs().Find(e.progress.key.job_id);
     if (!job) return;
     if (e.kind == ReassemblyEvent::Kind::kResend) {
       PublishProgress(*job,
@@ -968,255 +794,114 @@ class LcmEndpointImpl {
                     /*with_missing=*/true);
   }
 
-  // Adds a complete stroke to the job's progress, with its slipping (Fn, v)
-  // samples for the span coverage (paper 000 III-E), labelled as the fit
-  // will label them (the pair's labelling, else the defaults).
-  void AddStroke(const IdentificationJob& job,
-                 StrokeData stroke,
-                 JobProgress* jp) {
-    SlipLabelOptions labelling;
-    if (auto prev = library_.FindModel(job.material, job.fingertip);
-        prev && prev->set.stochastic)
-      labelling = prev->set.stochastic->labelling;
-    StrokeData labelled = stroke;
-    EnsureLabels(&labelled, labelling);
-    const std::vector<bool> mask = CalcFitMask(labelled, labelling);
-    for (std::size_t i = 0; i < labelled.size(); ++i) {
-      if (!mask[i]) continue;
-      jp->slip_fn_n.push_back(labelled.fn_n[i]);
-      jp->slip_v_mm_s.push_back(labelled.v_mm_s[i]);
-    }
-    jp->strokes.push_back(std::move(stroke));
+  // A stroke sender for the service: actor "lcm:<robot>", role "robot" for
+  // signed chunks ("" for unsigned ones).
+  static StrokeSender SenderOf(const std::string& robot, const char* type) {
+    StrokeSender sender;
+    sender.robot = robot;
+    sender.is_signed = std::string(type) == "stroke_chunk_v2";
+    sender.actor = ("lcm:" + robot).substr(0, 128);
+    sender.role = sender.is_signed ? "robot" : "";
+    sender.action = std::string("LCM ") + type;
+    return sender;
   }
 
-  // The job's progress; on first use in this process it starts from the
-  // strokes the store keeps for the job (after a restart, or for a job taken
-  // over from a daemon that died).
-  JobProgress& ProgressOf(const IdentificationJob& job) {
-    if (auto it = jobs_.find(job.id); it != jobs_.end()) return it->second;
-    const auto kept = library_.store().ListJobStrokes(job.id);
-    JobProgress& jp = jobs_[job.id];
-    for (const auto& [index, csv] : kept) {
-      try {
-        AddStroke(job, ParseStrokeCsv(csv), &jp);
-        jp.done_strokes.insert(index);
-      } catch (const std::exception& e) {
-        std::cerr << "frictiond: kept stroke " << index << " of job " << job.id
-                  << " unreadable, asked again: " << e.what() << "\n";
-      }
-    }
-    return jp;
-  }
-
-  // Forgets a closed job's progress and its kept strokes.
-  void CloseJob(std::int64_t job_id) {
-    jobs_.erase(job_id);
-    try {
-      library_.store().DeleteJobStrokes(job_id);
-    } catch (const std::exception& e) {
-      std::cerr << "frictiond: kept strokes of job " << job_id
-                << " not deleted: " << e.what() << "\n";
-    }
-  }
-
-  // Audit log entry for a write that came over LCM: actor "lcm:<robot>",
-  // role "robot" for signed chunks ("" for unsigned ones), the job's pair,
-  // and `detail` (status, version or why). A store that is down loses the
-  // entry, not the answer to the robot.
-  void AuditLcmWrite(const IdentificationJob& job,
-                     const std::string& robot,
-                     const char* type,
-                     json detail) {
-    const bool is_signed = std::string(type) == "stroke_chunk_v2";
-    AuditEntry e;
-    e.actor = ("lcm:" + robot).substr(0, 128);
-    e.role = is_signed ? "robot" : "";
-    e.action = std::string("LCM ") + type;
-    e.material = job.material;
-    detail["job"] = job.id;
-    detail["fingertip"] = job.fingertip;
-    detail["signed"] = is_signed;
-    e.detail = detail.dump();
-    try {
-      library_.store().AppendAudit(e);
-    } catch (const std::exception& ex) {
-      std::cerr << "frictiond: audit of an LCM write lost: " << ex.what()
-                << "\n";
-    }
-  }
-
+  // A complete stroke: the service decides (reject, follow-up, fail, fit);
+  // the endpoint tells the robot.
   void OnStrokeComplete(IdentificationJob job,
                         const std::string& robot,
                         const StrokeKey& key,
                         const char* type) {
     const StrokeProgress progress = *reassembler_.Progress(key);
-    JobProgress& jp = ProgressOf(job);
-    const json plan = json::parse(job.plan_json);
-    StrokeData stroke;
-    try {
-      stroke = reassembler_.Take(key);
-      const double duration_s = stroke.t_s.back() - stroke.t_s.front();
-      const double max_s = plan.value("max_duration_s", 120.0);
-      if (!(duration_s <= max_s))
-        throw std::invalid_argument(
-            "t_s: the stroke lasts " + std::to_string(duration_s) +
-            " s (the plan allows max_duration_s = " + std::to_string(max_s) +
-            " s)");
-    } catch (const std::invalid_argument& e) {
-      PublishError("stroke_chunk_v1",
-                   "",
-                   robot,
-                   job.id,
-                   key.stroke,
-                   -1,
-                   FieldOf(e.what()),
-                   e.what());
-      PublishProgress(job,
-                      robot,
-                      progress,
-                      job.state,
-                      -1,
-                      0,
-                      std::string("stroke rejected: ") + e.what(),
-                      false);
-      return;
-    }
-    // Kept in the store until the job closes: a restart (or a daemon taking
-    // the job over) continues with it instead of asking for it again.
-    try {
-      library_.store().PutJobStroke(
-          job.id, key.stroke, FormatStrokeCsv(stroke));
-    } catch (const std::exception& e) {
-      const std::string why =
-          std::string("the stroke could not be kept (store: ") + e.what() +
-          "); send it again";
-      PublishError(type, "", robot, job.id, key.stroke, -1, "store", why);
-      PublishProgress(job, robot, progress, job.state, -1, 0, why, false);
-      return;
-    }
-    jp.done_strokes.insert(key.stroke);
-    AddStroke(job, std::move(stroke), &jp);
-    const SpanRect plan_span = PlanSpan(plan);
-    const SpanCoverage cov =
-        CalcSpanCoverage(jp.slip_fn_n, jp.slip_v_mm_s, plan_span);
-    const double min_pct = plan.value("min_span_pct", 50.0);
-    char span_text[160];
-    std::snprintf(span_text,
-                  sizeof span_text,
-                  "span %.1f %% of the plan (needs %.1f %%) from %d slipping "
-                  "samples in %zu stroke(s)",
-                  cov.span_pct,
-                  min_pct,
-                  cov.samples,
-                  jp.strokes.size());
-    if (cov.span_pct < min_pct) {
-      if (static_cast<int>(jp.strokes.size()) >= options_.max_strokes_per_job) {
-        const std::string why = std::string("too little span coverage: ") +
-                                span_text + " after the maximum of " +
-                                std::to_string(options_.max_strokes_per_job) +
-                                " strokes";
-        library_.store().UpdateJob(job.id, "failed", why);
-        AuditLcmWrite(job, robot, type, {{"status", 422}, {"why", why}});
-        CloseJob(job.id);  // before the robot hears of it
+    const StrokeSender sender = SenderOf(robot, type);
+    const StrokeOutcome o =
+        collector_.AddStroke(&job, key.stroke, reassembler_.Take(key), sender);
+    using Kind = StrokeOutcome::Kind;
+    switch (o.kind) {
+      case Kind::kRejected:
+        PublishError("stroke_chunk_v1",
+                     "",
+                     robot,
+                     job.id,
+                     key.stroke,
+                     -1,
+                     o.field,
+                     o.message);
         PublishProgress(
-            job, robot, progress, "failed", cov.span_pct, 0, why, false);
+            job, robot, progress, job.state, -1, 0, o.detail, false);
         return;
-      }
-      // A follow-up stroke for the missing region instead of a weak model.
-      char region[200];
-      std::snprintf(region,
-                    sizeof region,
-                    "; follow-up stroke %d asked for fn_n %.2f-%.2f N, "
-                    "v_mm_s %.1f-%.1f mm/s",
-                    key.stroke + 1,
-                    cov.missing.fn_min_n,
-                    cov.missing.fn_max_n,
-                    cov.missing.v_min_mm_s,
-                    cov.missing.v_max_mm_s);
-      const std::string detail = span_text + std::string(region);
-      library_.store().UpdateJob(job.id, "stroking", detail);
-      PublishProgress(
-          job, robot, progress, "stroking", cov.span_pct, 0, detail, false);
-      PublishIdentificationRequest(job.id,
-                                   "",
-                                   robot,
-                                   job.material,
-                                   job.fingertip,
-                                   plan,
-                                   key.stroke + 1,
-                                   cov.missing);
-      return;
+      case Kind::kNotKept:
+        PublishError(
+            type, "", robot, job.id, key.stroke, -1, o.field, o.message);
+        PublishProgress(
+            job, robot, progress, job.state, -1, 0, o.detail, false);
+        return;
+      case Kind::kFailed:
+        PublishProgress(job,
+                        robot,
+                        progress,
+                        JobStateName(o.state),
+                        o.span_pct,
+                        0,
+                        o.detail,
+                        false);
+        return;
+      case Kind::kFollowUp:
+        PublishProgress(job,
+                        robot,
+                        progress,
+                        JobStateName(o.state),
+                        o.span_pct,
+                        0,
+                        o.detail,
+                        false);
+        PublishIdentificationRequest(job.id,
+                                     "",
+                                     robot,
+                                     job.material,
+                                     job.fingertip,
+                                     IdentificationJobs::PlanOf(job),
+                                     o.follow_up_stroke,
+                                     o.missing);
+        return;
+      case Kind::kEnoughCoverage:
+      case Kind::kFitted:
+        break;
     }
-    library_.store().UpdateJob(job.id, "enough_coverage", span_text);
     PublishProgress(job,
                     robot,
                     progress,
-                    "enough_coverage",
-                    cov.span_pct,
+                    JobStateName(o.state),
+                    o.span_pct,
                     0,
-                    span_text,
+                    o.detail,
                     false);
-    // One upload of all the job's strokes: later strokes are shifted to
-    // start 1 s after the previous one ended (a gap = an unrecorded rest).
-    StrokeData all;
-    for (const StrokeData& s : jp.strokes) {
-      StrokeData shifted = s;
-      if (!all.empty()) {
-        const double shift = all.t_s.back() + 1.0 - s.t_s.front();
-        for (double& t : shifted.t_s) t += shift;
-      }
-      all.Append(shifted);
-    }
-    IngestOptions io;
-    io.fingertip = job.fingertip;
-    io.robot = ("lcm:" + robot).substr(0, 128);
     struct IngestingJob {  // the model listener reads it on this thread
       explicit IngestingJob(std::int64_t id) { tl_ingesting_job = id; }
       ~IngestingJob() { tl_ingesting_job = 0; }
     };
-    try {
+    StrokeOutcome fit;
+    {
       const IngestingJob ingesting(job.id);
-      const IngestResult r =
-          library_.IngestStrokes(job.material, FormatStrokeCsv(all), io);
-      const std::string detail =
-          "fitted version " + std::to_string(r.version) + " (" + r.fit_status +
-          (r.fit_note.empty() ? "" : ": " + r.fit_note) + "); " + span_text;
-      library_.store().UpdateJob(job.id, "fitted", detail);
-      AuditLcmWrite(job,
-                    robot,
-                    type,
-                    {{"status", 201},
-                     {"version", r.version},
-                     {"strokes", jp.strokes.size()}});
-      CloseJob(job.id);  // before the robot hears of it
-      PublishProgress(job,
-                      robot,
-                      progress,
-                      "fitted",
-                      cov.span_pct,
-                      r.version,
-                      detail,
-                      false);
-    } catch (const RequestError& e) {
-      const std::string why = std::string("identification failed: ") + e.what();
-      library_.store().UpdateJob(job.id, "failed", why);
-      AuditLcmWrite(
-          job,
-          robot,
-          type,
-          {{"status", e.status()}, {"field", e.field()}, {"why", why}});
-      CloseJob(job.id);
+      fit = collector_.Fit(&job, o, sender);
+    }
+    if (fit.kind == Kind::kFailed)
       PublishError("stroke_chunk_v1",
                    "",
                    robot,
                    job.id,
                    key.stroke,
                    -1,
-                   e.field(),
-                   e.what());
-      PublishProgress(
-          job, robot, progress, "failed", cov.span_pct, 0, why, false);
-    }
+                   fit.field,
+                   fit.message);
+    PublishProgress(job,
+                    robot,
+                    progress,
+                    JobStateName(fit.state),
+                    fit.span_pct,
+                    fit.version,
+                    fit.detail,
+                    false);
   }
 
   FrictionLibrary& library_;
@@ -1227,11 +912,7 @@ class LcmEndpointImpl {
   LcmAuthenticator auth_;
   std::string fleet_key_;  // raw; empty: none
   LcmDecodeLimits decode_limits_;
-  std::map<std::int64_t, JobProgress> jobs_;
-  // Jobs this endpoint claimed, with the time of the last claim renewal.
-  std::map<std::int64_t, double> claimed_;
-  const std::string worker_id_ =
-      options_.worker_id.empty() ? MakeWorkerId() : options_.worker_id;
+  JobStrokeCollector collector_;
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };

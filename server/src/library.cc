@@ -10,6 +10,8 @@
 
 #include "frictiond/estimators/stroke_csv.h"
 #include "frictiond/proto/actuator_json.h"
+#include "frictiond/server/identification_json.h"
+#include "frictiond/server/model_lookup.h"
 #include "frictiond/server/text.h"
 
 namespace frictiond {
@@ -290,120 +292,30 @@ std::shared_ptr<const CachedModel> FrictionLibrary::FindModelVersion(
   return record ? Decode(*record) : nullptr;
 }
 
-json FrictionLibrary::MakeStrokePlan(const std::string& material,
-                                     const std::string& fingertip) const {
-  const StrokePlanOptions& p = options_.plan;
-  json plan =
-      json{{"material", material},
-           {"fingertip", fingertip},
-           {"fn_n", {p.fn_min_n, p.fn_max_n}},
-           {"v_mm_s", {p.v_min_mm_s, p.v_max_mm_s}},
-           {"max_duration_s", p.max_duration_s},
-           {"min_span_pct", p.min_span_pct},
-           {"instructions",
-            "slide the fingertip on the surface in repeated strokes with "
-            "rests between them, sweeping normal "
-            "force over fn_n and peak sliding speed over v_mm_s; then POST "
-            "the samples as a stroke CSV (t_s, "
-            "fn_n, ft_n, v_mm_s) to /v1/materials/" +
-                material + "/strokes?fingertip=" + fingertip}};
-  if (p.lugre_pair) {
-    const double fn_n =
-        p.lugre_fn_n > 0 ? p.lugre_fn_n : 0.5 * (p.fn_min_n + p.fn_max_n);
-    plan["lugre"] = json{
-        {"fn_n", fn_n},
-        {"slow",
-         {{"accel_mm_s2", p.lugre_slow_accel_mm_s2},
-          {"peak_mm_s", p.lugre_slow_peak_mm_s}}},
-        {"fast",
-         {{"strokes", p.lugre_fast_strokes},
-          {"accel_mm_s2", p.lugre_fast_accel_mm_s2},
-          {"peak_mm_s", p.lugre_fast_peak_mm_s}}},
-        {"rest_s", p.lugre_rest_s},
-        {"instructions",
-         "end the stroke with the LuGre identifying pair at normal force "
-         "fn_n: a slow triangle 0 -> slow.peak_mm_s -> 0 at |dv/dt| = "
-         "slow.accel_mm_s2, then fast.strokes triangles 0 -> fast.peak_mm_s "
-         "-> 0 at fast.accel_mm_s2, with rest_s of rest between triangles "
-         "(rest_s / 2 before the first and after the last)"}};
-  }
-  return plan;
+StrokePlan FrictionLibrary::MakeStrokePlan(const std::string& material,
+                                           const std::string& fingertip) const {
+  return jobs_.MakeStrokePlan(material, fingertip);
 }
 
-json FrictionLibrary::RequestIdentification(const std::string& material,
-                                            const std::string& fingertip,
-                                            const std::string& requested_by) {
-  CheckText(requested_by, "robot", 128);
-  const json plan = MakeStrokePlan(material, fingertip);
-  {
-    // Reads must not grow the store without bound: an open job for the
-    // pair is reused, and new ones stop at the caps (the store's listing
-    // of open jobs is bounded by the same caps).
-    std::lock_guard<std::mutex> lock(request_mu_);
-    const int total_cap = std::max(options_.max_open_requests, 0);
-    bool pair_open = false;
-    int open_total = 0, open_mine = 0;
-    for (const IdentificationJob& j :
-         store_->ListJobsPage(/*open_only=*/true, 0, total_cap + 1)) {
-      ++open_total;
-      if (j.requested_by == requested_by) ++open_mine;
-      if (j.material == material && j.fingertip == fingertip) pair_open = true;
-    }
-    std::string why;
-    if (!pair_open && open_total >= total_cap) {
-      why = std::to_string(open_total) +
-            " identification requests are open (the daemon's cap); none was "
-            "recorded";
-    } else if (!pair_open &&
-               open_mine >= options_.max_open_requests_per_requester) {
-      why = "requester '" + ShownText(requested_by, 64) + "' has " +
-            std::to_string(open_mine) +
-            " open identification requests (the cap per requester); none "
-            "was recorded";
-    }
-    if (!why.empty())
-      return json{{"requested", false}, {"reason", why}, {"stroke", plan}};
-  }
-  IdentificationJob job;
-  job.material = material;
-  job.fingertip = fingertip;
-  job.state = "requested";
-  job.plan_json = plan.dump();
-  job.requested_by = requested_by;
-  job.detail = "waiting for a test stroke";
-  const IdentificationJob j = store_->RequestIdentification(job);
-  return json{{"requested", true},
-              {"job_id", j.id},
-              {"state", j.state},
-              {"created_at", j.created_at},
-              {"stroke", json::parse(j.plan_json)}};
+IdentificationRequest FrictionLibrary::RequestIdentification(
+    const std::string& material,
+    const std::string& fingertip,
+    const std::string& requested_by) {
+  return jobs_.Request(material, fingertip, requested_by);
 }
 
 std::shared_ptr<const CachedModel> FrictionLibrary::RequireModel(
     const std::string& material,
     const std::string& fingertip,
     const std::string& requested_by) {
-  CheckId(material, "id");
-  CheckId(fingertip, "fingertip");
-  if (auto m = FindModel(material, fingertip)) return m;
-  const bool known = store_->GetMaterial(material).has_value();
+  const ModelLookup found =
+      LookUpModel(*this, material, fingertip, requested_by);
+  if (found.model) return found.model;
   json extra = json{{"material", material},
                     {"fingertip", fingertip},
-                    {"known_material", known}};
-  extra["identification"] =
-      RequestIdentification(material, fingertip, requested_by);
-  const std::string outcome =
-      extra["identification"].value("requested", false)
-          ? "an identification was requested"
-          : "no identification was recorded (" +
-                extra["identification"].value("reason", std::string()) + ")";
-  throw RequestError(404,
-                     "id",
-                     known ? "material '" + material +
-                                 "' has no friction model for fingertip '" +
-                                 fingertip + "' yet: " + outcome
-                           : "unknown material '" + material + "': " + outcome,
-                     extra);
+                    {"known_material", found.known_material}};
+  extra["identification"] = IdentificationRequestToJson(found.identification);
+  throw RequestError(404, "id", found.message, extra);
 }
 
 StrokeData FrictionLibrary::LoadStrokes(

@@ -1,5 +1,6 @@
 #include <cmath>
 
+#include "frictiond/server/identification_json.h"
 #include "frictiond/server/routes.h"
 #include "frictiond/server/text.h"
 
@@ -100,8 +101,8 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
     auto m = lib.store().GetMaterial(id);
     if (!m) {
       json extra = {{"material", id}, {"known_material", false}};
-      extra["identification"] =
-          lib.RequestIdentification(id, "default", Requester(req));
+      extra["identification"] = IdentificationRequestToJson(
+          lib.RequestIdentification(id, "default", Requester(req)));
       throw RequestError(
           404,
           "id",

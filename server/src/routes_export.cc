@@ -9,6 +9,7 @@
 
 #include "frictiond/estimators/contact_friction.h"
 #include "frictiond/proto/sim_export.h"
+#include "frictiond/server/identification_json.h"
 #include "frictiond/server/routes.h"
 
 namespace frictiond {
@@ -278,8 +279,8 @@ HttpResponse PairFriction(FrictionLibrary& lib, const HttpRequest& req) {
     if (!mb)
       extra["missing"].push_back(
           {{"material", object}, {"fingertip", reference}});
-    extra["identification"] =
-        lib.RequestIdentification(object, tip, Requester(req));
+    extra["identification"] = IdentificationRequestToJson(
+        lib.RequestIdentification(object, tip, Requester(req)));
     throw RequestError(
         404,
         !ma ? "fingertip" : "object",

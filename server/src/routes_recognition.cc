@@ -6,6 +6,7 @@
 #include <memory>
 #include <stdexcept>
 
+#include "frictiond/server/identification_json.h"
 #include "frictiond/server/routes.h"
 
 #ifdef FRICTIOND_HAVE_RECOGNITION
@@ -153,12 +154,15 @@ RecognizeImageFn RegisterRecognitionRoutes(HttpServer& http,
           // stroke.
           if (auto hint = req.Query("material")) {
             CheckId(*hint, "material");
-            out["identification"] = lib.RequestIdentification(
-                *hint, FingertipParam(req), "recognize");
+            out["identification"] =
+                IdentificationRequestToJson(lib.RequestIdentification(
+                    *hint, FingertipParam(req), "recognize"));
           } else {
             out["identification"] = {
                 {"requested", false},
-                {"stroke", lib.MakeStrokePlan("<new-id>", FingertipParam(req))},
+                {"stroke",
+                 StrokePlanToJson(
+                     lib.MakeStrokePlan("<new-id>", FingertipParam(req)))},
                 {"detail",
                  "pass ?material=<new id> to record an identification "
                  "request"}};

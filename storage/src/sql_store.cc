@@ -20,6 +20,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "frictiond/storage/job_state.h"
 #include "frictiond/storage/store.h"
 
 #include "connection.h"
@@ -81,8 +82,8 @@ std::int64_t Rows::Int(int row, int col) const {
 
 namespace {
 
-constexpr const char* kOpenStates =
-    "('requested','stroking','enough_coverage')";
+// The open job states, in job_state.h's one spelling.
+const std::string& kOpenStates = OpenJobStatesSql();
 
 std::string TagsToJson(const std::vector<std::string>& tags) {
   return nlohmann::json(tags).dump();
@@ -334,9 +335,11 @@ class SqlStore final : public Store {
       ModelRecord m = model;
       m.stroke_id = out.stroke_id;
       out.version = AppendModel(c, m, now);
-      c.Execute(std::string("UPDATE jobs SET state='fitted', detail=$1, "
-                            "updated_at=$2 WHERE material=$3 AND fingertip=$4 "
-                            "AND state IN ") +
+      c.Execute(std::string("UPDATE jobs SET state='") +
+                    JobStateName(JobState::kFitted) +
+                    "', detail=$1, "
+                    "updated_at=$2 WHERE material=$3 AND fingertip=$4 "
+                    "AND state IN " +
                     kOpenStates,
                 Params()
                     .Text("model version " + std::to_string(out.version) +
@@ -435,7 +438,8 @@ class SqlStore final : public Store {
           Params()
               .Text(job.material)
               .Text(job.fingertip)
-              .Text(job.state.empty() ? std::string("requested") : job.state)
+              .Text(job.state.empty() ? JobStateName(JobState::kRequested)
+                                      : job.state)
               .Text(job.plan_json)
               .Text(job.detail)
               .Text(job.requested_by)

@@ -21,6 +21,7 @@
 
 #include "frictiond/estimators/stochastic_model.h"
 #include "frictiond/proto/model_json.h"
+#include "frictiond/server/identification_jobs.h"
 #include "frictiond/server/request_error.h"
 #include "frictiond/storage/store.h"
 
@@ -124,19 +125,20 @@ class FrictionLibrary {
       const std::string& material,
       const std::string& fingertip,
       const std::string& requested_by);
-  /// Records (or finds the open) identification job for an unknown pair and
-  /// returns the JSON the caller should act on: {"requested": true,
-  /// "job_id", "state", "created_at", "stroke"}, or {"requested": false,
-  /// "reason", "stroke"} when a cap of LibraryOptions is reached (nothing is
-  /// stored then).
+  /// Records (or finds the open) identification job for an unknown pair
+  /// (IdentificationJobs::Request): requested with the job, or not
+  /// requested with the reason when a cap of LibraryOptions is reached
+  /// (nothing is stored then). identification_json.h gives its JSON.
   /// @throws RequestError(400) when `requested_by` is not valid text
   /// (text.h; at most 128 bytes).
-  nlohmann::json RequestIdentification(const std::string& material,
-                                       const std::string& fingertip,
-                                       const std::string& requested_by);
-  /// The stroke to perform for a pair, as JSON.
-  nlohmann::json MakeStrokePlan(const std::string& material,
-                                const std::string& fingertip) const;
+  IdentificationRequest RequestIdentification(const std::string& material,
+                                              const std::string& fingertip,
+                                              const std::string& requested_by);
+  /// The stroke to perform for a pair.
+  StrokePlan MakeStrokePlan(const std::string& material,
+                            const std::string& fingertip) const;
+  /// Identification jobs: the only writer of a job's state.
+  IdentificationJobs& jobs() { return jobs_; }
 
   /// Validates a stroke CSV, refits the pair's model on all its strokes and
   /// stores stroke + model version in one transaction.
@@ -218,13 +220,13 @@ class FrictionLibrary {
 
   std::unique_ptr<Store> store_;
   LibraryOptions options_;
+  IdentificationJobs jobs_{*store_, options_};
   std::shared_mutex cache_mu_;
   std::unordered_map<std::string, std::shared_ptr<const CachedModel>>
       cache_;  // key: material '\n' fingertip
   // Invalidated entries, served only while the store is unavailable.
   std::unordered_map<std::string, std::shared_ptr<const CachedModel>> stale_;
-  std::mutex ingest_mu_;   // serialises refits so versions follow upload order
-  std::mutex request_mu_;  // serialises the caps of RequestIdentification
+  std::mutex ingest_mu_;  // serialises refits so versions follow upload order
   std::vector<std::pair<std::string, FamilyFitter>> fitters_;
   std::mutex listeners_mu_;
   std::vector<ModelListener> listeners_;

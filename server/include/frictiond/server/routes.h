@@ -11,6 +11,7 @@
 
 #include "frictiond/server/http_server.h"
 #include "frictiond/server/library.h"
+#include "frictiond/server/recognition_hook.h"
 
 namespace frictiond {
 
@@ -33,24 +34,6 @@ void RegisterJointRoutes(HttpServer& http, FrictionLibrary& library);
 /// Measured actuator logs (issue 20): /actuator-logs, /actuator-model,
 /// /actuator-simulate, /actuator-mjcf (docs/actuator.md).
 void RegisterActuatorRoutes(HttpServer& http, FrictionLibrary& library);
-
-/// Answer of the recognition hook: ranked candidates (material, score),
-/// best first, or unknown (below the confidence threshold, or nothing
-/// registered).
-struct ImageRecognition {
-  bool unknown = true;
-  /// (material, calibrated score in [0, 1]), best first.
-  std::vector<std::pair<std::string, double>> candidates;
-  /// Why accepted or unknown, e.g. "closest is wood at 0.62, below the 0.84
-  /// operating point" (docs/recognition.md).
-  std::string reason;
-  /// The operating point (score threshold) the decision used.
-  double operating_point = 0.0;
-};
-/// The recognition hook: image bytes (PNG or JPEG) -> ImageRecognition.
-/// @throws std::invalid_argument for an image that cannot be decoded.
-using RecognizeImageFn =
-    std::function<ImageRecognition(const std::string& image)>;
 
 /// /images, /recognize. Returns the recognition hook over the same
 /// registered references (for the LCM endpoint), or an empty function when

@@ -1,0 +1,60 @@
+#pragma once
+/// @file
+/// A lookup of a pair's model (paper 000, Fig. 11 "library lookup"),
+/// independent of the transport: the newest model, or, for a pair without
+/// one, the identification request recorded for it (IdentificationJobs).
+/// FrictionLibrary::RequireModel (HTTP) and the LCM endpoint's
+/// material_query_v1 both answer from it; LookUpModelForQuery adds the
+/// recognition of a query image and turns every failure into a result.
+
+#include <memory>
+#include <string>
+
+#include "frictiond/server/identification_jobs.h"
+#include "frictiond/server/library.h"
+#include "frictiond/server/recognition_hook.h"
+
+namespace frictiond {
+
+/// What a lookup found.
+struct ModelLookup {
+  enum class Outcome {
+    kKnown,        ///< `model` is the pair's newest model
+    kUnknown,      ///< no model: `identification` says what was recorded
+    kRejected,     ///< the request is wrong: `field`, `message`
+    kUnavailable,  ///< the store or library failed: `message` (retry later)
+  };
+  Outcome outcome = Outcome::kRejected;
+  std::string material;            ///< looked up (recognition may set it)
+  double recognition_score = 0.0;  ///< of the recognised material, else 0
+  std::shared_ptr<const CachedModel> model;  ///< kKnown
+  bool known_material = false;               ///< kUnknown: material exists
+  IdentificationRequest identification;      ///< kUnknown
+  std::string field;          ///< kRejected (the request's field)
+  std::string message;        ///< kUnknown, kRejected, kUnavailable: in words
+  bool store_outage = false;  ///< kUnavailable: the store is unreachable
+};
+
+/// The newest model of (material, fingertip), or kUnknown with the
+/// identification request recorded for `requested_by` (the caps of
+/// LibraryOptions apply) and the message the HTTP 404 shows.
+/// @throws RequestError(400) for an invalid material ("id"), fingertip or
+/// requested_by ("robot"); store failures propagate.
+ModelLookup LookUpModel(FrictionLibrary& library,
+                        const std::string& material,
+                        const std::string& fingertip,
+                        const std::string& requested_by);
+
+/// A robot's query: by material id, or by image through `recognize` (the
+/// recognised material replaces the id; an unrecognised image needs the id
+/// the new material should get). Never throws for the request's content:
+/// invalid input is kRejected naming the field ("material" for an invalid
+/// id, "image", "fingertip", "robot"), a failing store kUnavailable.
+ModelLookup LookUpModelForQuery(FrictionLibrary& library,
+                                const RecognizeImageFn& recognize,
+                                const std::string& material,
+                                const std::string& fingertip,
+                                const std::string& image,
+                                const std::string& requested_by);
+
+}  // namespace frictiond
