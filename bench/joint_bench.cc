@@ -86,7 +86,7 @@ int Main(int argc, char** argv) {
     for (int i = 0; i < kStates; ++i) {
       const double eta = CalcViscosity(oil, temp[i]);
       const double s = CalcSommerfeldUm(eta, v[i], load[i], contact);
-      sum += CalcMixedFriction(theta, surface, s);
+      sum += CalcMixedFriction(theta, surface, s, load[i]);
     }
     const double dt = std::chrono::duration<double>(Clock::now() - t0).count();
     ns_closed.push_back(dt / kStates * 1e9);
