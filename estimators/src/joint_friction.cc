@@ -350,6 +350,49 @@ double SampleContactFriction(const MixedFrictionTheta& theta,
   return alpha * theta[0] + (1.0 - alpha) * theta[1];
 }
 
+namespace {
+
+constexpr double kF32TableLo = -8.0, kF32TableHi = 12.0;
+constexpr int kF32Nodes = 4096;
+constexpr double kDryDecadesLn = 16.0;  // ln(W / capacity) tabulated
+constexpr int kDryNodes = 4096;
+
+// Cubic Hermite on a uniform grid: node values y, slopes s (per unit x),
+// x0 the first node, h the spacing; x inside [x0, x0 + (n-1) h].
+double Hermite(const std::vector<double>& y,
+               const std::vector<double>& s,
+               double x0,
+               double h,
+               double x) {
+  const double q = (x - x0) / h;
+  const std::size_t i =
+      std::min(static_cast<std::size_t>(std::max(q, 0.0)), y.size() - 2);
+  const double t = q - static_cast<double>(i);
+  const double t2 = t * t, t3 = t2 * t;
+  const double h00 = 2 * t3 - 3 * t2 + 1, h10 = t3 - 2 * t2 + t;
+  const double h01 = -2 * t3 + 3 * t2, h11 = t3 - t2;
+  return h00 * y[i] + h10 * h * s[i] + h01 * y[i + 1] + h11 * h * s[i + 1];
+}
+
+// F_3/2(lambda) for lambda <= -8: E[(L + Z)^3/2], L = -lambda, expanded in
+// the even moments of Z: L^3/2 sum_k C(3/2, 2k) (2k-1)!! L^-2k (the part of
+// Z below -L, weight phi(8) ~ 5e-15, is dropped). 12 terms: relative error
+// below 1e-13 at L = 8 (tested against the quadrature).
+double AsymptoticF32(double lambda) {
+  const double l = -lambda, inv_l2 = 1.0 / (l * l);
+  double sum = 1.0, binom = 1.0, power = 1.0, dfact = 1.0;
+  for (int k = 1; k <= 12; ++k) {
+    const double j = 2.0 * k;
+    binom *= (1.5 - j + 2) * (1.5 - j + 1) / ((j - 1) * j);  // C(3/2, 2k)
+    power *= inv_l2;                                         // L^-2k
+    dfact *= j - 1;                                          // (2k-1)!!
+    sum += binom * dfact * power;
+  }
+  return l * std::sqrt(l) * sum;
+}
+
+}  // namespace
+
 MixedFrictionTable::MixedFrictionTable(const MixedFrictionTheta& theta,
                                        const AsperitySurface& surface,
                                        const Lubricant& lubricant,
@@ -403,12 +446,63 @@ MixedFrictionTable::MixedFrictionTable(const MixedFrictionTheta& theta,
   }
   g_low_ = w_table_max_;  // the d -> 0 limit
   g_high_ = g_.back();
+  // Heavy loads: lambda_dry(ln(W/K)) and F_3/2(lambda) tables.
+  k_n_ = k_n;
+  log_k_ = std::log(k_n);
+  y_lo_ = std::log(w_table_max_ / k_n);
+  y_hi_ = y_lo_ + kDryDecadesLn;
+  dy_ = (y_hi_ - y_lo_) / (kDryNodes - 1);
+  lam_dry_.resize(kDryNodes);
+  lam_dry_slope_.resize(kDryNodes);
+  for (int i = 0; i < kDryNodes; ++i) {
+    const std::size_t k = static_cast<std::size_t>(i);
+    const double w = k_n * std::exp(y_lo_ + dy_ * i);
+    const double lam =
+        (CalcDrySeparationUm(surface, w) - surface.alt_um) / surface.salt_um;
+    const SummitIntegrals f = CalcSummitIntegrals(lam);
+    lam_dry_[k] = lam;
+    // F_3/2(lambda) = e^y: dlambda/dy = F_3/2 / F_3/2' = -F_3/2 / (1.5 F_1/2).
+    lam_dry_slope_[k] = -f.f_32 / (1.5 * f.f_12);
+  }
+  f32_.resize(kF32Nodes);
+  f32_slope_.resize(kF32Nodes);
+  const double h = (kF32TableHi - kF32TableLo) / (kF32Nodes - 1);
+  for (int i = 0; i < kF32Nodes; ++i) {
+    const std::size_t k = static_cast<std::size_t>(i);
+    const SummitIntegrals f = CalcSummitIntegrals(kF32TableLo + h * i);
+    f32_[k] = f.f_32;
+    f32_slope_[k] = -1.5 * f.f_12;
+  }
+}
+
+double MixedFrictionTable::HeavyLoad(double u, double load_n) const {
+  const double y = std::log(load_n) - log_k_;
+  if (!(y < y_hi_))
+    return CalcMixedFriction(theta_, surface_, std::exp(u), load_n);
+  const double lam_dry = y <= y_lo_
+                             ? lam_dry_.front()
+                             : Hermite(lam_dry_, lam_dry_slope_, y_lo_, dy_, y);
+  const double d_film =
+      theta_[2] * std::exp(theta_[3] * (u - std::log(kSommerfeldRefUm)));
+  const double lambda = lam_dry + d_film / surface_.salt_um;
+  double f32 = 0;
+  if (lambda < kF32TableLo) {
+    f32 = AsymptoticF32(lambda);
+  } else if (lambda < kF32TableHi) {
+    f32 = Hermite(f32_,
+                  f32_slope_,
+                  kF32TableLo,
+                  (kF32TableHi - kF32TableLo) / (kF32Nodes - 1),
+                  lambda);
+  }
+  return std::min(1.0, k_n_ * f32 / load_n);
 }
 
 double MixedFrictionTable::EvalLog(double u, double load_n) const {
+  if (!(load_n > 0)) return std::numeric_limits<double>::quiet_NaN();
   if (!(load_n <= w_table_max_)) {
-    if (!(load_n > 0)) return std::numeric_limits<double>::quiet_NaN();
-    return CalcMixedFriction(theta_, surface_, std::exp(u), load_n);
+    const double alpha = HeavyLoad(u, load_n);
+    return alpha * theta_[0] + (1.0 - alpha) * theta_[1];
   }
   double g;
   if (!(u > u_min_)) {
@@ -416,14 +510,7 @@ double MixedFrictionTable::EvalLog(double u, double load_n) const {
   } else if (!(u < u_max_)) {
     g = g_high_;
   } else {
-    const double x = (u - u_min_) * inv_du_;
-    const std::size_t i = std::min(static_cast<std::size_t>(x), g_.size() - 2);
-    const double t = x - static_cast<double>(i);
-    const double t2 = t * t, t3 = t2 * t;
-    const double h00 = 2 * t3 - 3 * t2 + 1, h10 = t3 - 2 * t2 + t;
-    const double h01 = -2 * t3 + 3 * t2, h11 = t3 - t2;
-    g = h00 * g_[i] + h10 * du_ * slope_[i] + h01 * g_[i + 1] +
-        h11 * du_ * slope_[i + 1];
+    g = Hermite(g_, slope_, u_min_, du_, u);
   }
   const double alpha = std::min(1.0, g / load_n);        // eq. 6 load fraction
   return alpha * theta_[0] + (1.0 - alpha) * theta_[1];  // eq. 1

@@ -317,8 +317,16 @@ TEST(MixedFriction, TableMatchesTheClosedForm) {
     worst = std::max(worst, std::abs(table.Eval(v, load, temp) - exact));
     worst = std::max(worst, std::abs(table.EvalSommerfeld(s, load) - exact));
   }
+  // Heavy loads: lambda_dry far below -8 (asymptotic F_3/2).
+  for (double load : {2e3, 1e4, 1e5, 1e7}) {
+    for (double s = 1e-6; s < 10; s *= 1.7) {
+      const double exact = CalcMixedFriction(Truth(), c.surface, s, load);
+      worst = std::max(worst, std::abs(table.EvalSommerfeld(s, load) - exact));
+    }
+  }
   EXPECT_LT(worst, 1e-9);
   EXPECT_TRUE(std::isnan(table.Eval(1, 1, -200)));
+  EXPECT_TRUE(std::isnan(table.EvalSommerfeld(1e-3, 0.0)));
   EXPECT_NEAR(table.EvalSommerfeld(1e-30, 50.0),
               CalcMixedFriction(Truth(), c.surface, 1e-30, 50.0),
               1e-12);

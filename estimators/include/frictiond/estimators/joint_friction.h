@@ -241,8 +241,11 @@ double SampleContactFriction(const MixedFrictionTheta& theta,
 ///
 /// so G(u) is tabulated once on a uniform grid in u with its exact slope
 /// (cubic Hermite); below the grid G is its d -> 0 limit, above it G < 1e-30
-/// K. Heavier loads (d_dry < 0) take the direct CalcMixedFriction path.
-/// Interpolation error in f is below 1e-9 (tested). Copyable; not
+/// K. Heavier loads (d_dry < 0) use lambda = lambda_dry(W) + d(u) / SAlt
+/// with lambda_dry tabulated in ln W (up to e^16 times the capacity; beyond,
+/// the direct CalcMixedFriction path) and F_3/2 tabulated in lambda on
+/// [-8, 12], its asymptotic series below -8 (relative error < 1e-13) and 0
+/// above 12. Interpolation error in f is below 1e-9 (tested). Copyable; not
 /// thread-hostile (read-only after build).
 class MixedFrictionTable {
  public:
@@ -267,8 +270,13 @@ class MixedFrictionTable {
   double log_a_ = 0, b_ = 0, c_ = 0, log_const_ = 0;
   double u_min_ = 0, u_max_ = 0, inv_du_ = 0, du_ = 0;
   double g_low_ = 0, g_high_ = 0;
-  double w_table_max_ = 0;         // loads above: direct evaluation
-  std::vector<double> g_, slope_;  // G [N] and dG/du at the nodes
+  double HeavyLoad(double u, double load_n) const;
+  double w_table_max_ = 0;               // loads above: the heavy-load tables
+  std::vector<double> g_, slope_;        // G [N] and dG/du at the nodes
+  double k_n_ = 0, log_k_ = 0;           // K [N] and ln K
+  double y_lo_ = 0, y_hi_ = 0, dy_ = 0;  // ln(W/K) grid of lambda_dry
+  std::vector<double> lam_dry_, lam_dry_slope_;
+  std::vector<double> f32_, f32_slope_;  // F_3/2 on lambda in [-8, 12]
 };
 
 // ---------------------------------------------------------------- wear
