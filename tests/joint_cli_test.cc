@@ -138,8 +138,10 @@ TEST_F(JointCliTest, ClientLibraryRoundTrip) {
   const ModelSet m = client.FetchModel("steel-oil", 0, "z");
   const auto family = JointFamilyFromModel(m);
   ASSERT_TRUE(family.has_value());
-  const double local = CalcMixedFriction(
-      family->mixed.theta.head<4>(), family->config.surface, f.sommerfeld_um);
+  const double local = CalcMixedFriction(family->mixed.theta.head<4>(),
+                                         family->config.surface,
+                                         f.sommerfeld_um,
+                                         100);
   EXPECT_NEAR(local, f.mu, 1e-12);
   // Bad input: the daemon names the field.
   try {

@@ -43,6 +43,11 @@ std::string RenderFrictionCurveSvg(const JointFamily& f,
   const int w = 640, h = 360, left = 60, right = 20, top = 20, bottom = 50;
   const int pw = w - left - right, ph = h - top - bottom;
   const MixedFrictionTheta theta = f.mixed.theta.head<4>();
+  // alpha is a load fraction (paper 002 eq. 6): draw the curve at the
+  // geometric mean of the uploaded loads (100 N if no span is stored).
+  const double load_n = f.load_min_n > 0 && f.load_max_n >= f.load_min_n
+                            ? std::sqrt(f.load_min_n * f.load_max_n)
+                            : 100.0;
   const double lo = std::log10(s_min_um), hi = std::log10(s_max_um);
   constexpr int kPoints = 200;
   double y_max = 0;
@@ -51,8 +56,9 @@ std::string RenderFrictionCurveSvg(const JointFamily& f,
     const double ls = lo + (hi - lo) * i / kPoints;
     const double s = std::pow(10.0, ls);
     xs.push_back(ls);
-    mean.push_back(CalcMixedFriction(theta, f.config.surface, s));
-    sd.push_back(CalcMixedFrictionDispersion(theta, f.config.surface, s));
+    mean.push_back(CalcMixedFriction(theta, f.config.surface, s, load_n));
+    sd.push_back(
+        CalcMixedFrictionDispersion(theta, f.config.surface, s, load_n));
     y_max = std::max(y_max, mean.back() + 2 * sd.back());
   }
   y_max = y_max > 0 ? 1.1 * y_max : 1.0;

@@ -127,7 +127,8 @@ ActuatorFrictionBudget CalcActuatorFrictionBudget(
             eta, r_mm * std::abs(in.dq_rad_s), load_n, contact);
         const MixedFrictionTheta theta = MakeMixedFrictionTheta(
             1.0, p.mixed_fluid_ratio, p.mixed_film_ref_um, p.mixed_film_power);
-        f = CalcMixedFriction(theta, surface, std::isfinite(s) ? s : 0.0);
+        f = CalcMixedFriction(
+            theta, surface, std::isfinite(s) ? s : 0.0, load_n);
       }
       b.frictionloss_nm = std::max(0.0, torque) * f;
       break;

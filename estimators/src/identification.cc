@@ -23,15 +23,19 @@ void FitConditionalAndCoverage(const StrokeData& data,
   out->conditional = FitConditionalSlipLikelihood(
       data.fn_n, ratio, data.slip, options.conditional);
   std::vector<double> fn, v;
+  std::vector<int> stroke;
   fn.reserve(n);
   v.reserve(n);
+  const bool has_stroke = data.stroke.size() == n;
   for (std::size_t i = 0; i < n; ++i) {
     if (data.slip[i]) {
       fn.push_back(data.fn_n[i]);
       v.push_back(data.v_mm_s[i]);
+      if (has_stroke) stroke.push_back(data.stroke[i]);
     }
   }
   out->coverage = CalcSpanCoverage(fn, v, options.reference);
+  out->hull = CalcMaterialHullCoverage(fn, v, stroke);
 }
 
 }  // namespace

@@ -61,10 +61,11 @@ Eigen::VectorXd StartGuess(JointModelKind kind,
                            const JointData& d,
                            const JointConfig& c,
                            const std::vector<std::size_t>& rows) {
-  std::vector<double> mu, v, s;
+  std::vector<double> mu, v, s, w;
   for (std::size_t i : rows) {
     mu.push_back(d.mu[i]);
     v.push_back(d.v_mm_s[i]);
+    w.push_back(d.load_n[i]);
     s.push_back(
         CalcSommerfeldUm(d.eta_pa_s[i], d.v_mm_s[i], d.load_n[i], c.contact));
   }
@@ -73,11 +74,15 @@ Eigen::VectorXd StartGuess(JointModelKind kind,
   const double v_med = std::max(Quantile(v, 0.5), 1e-2);
   switch (kind) {
     case JointModelKind::kMixed: {
-      // Film thickness equal to the mean summit altitude at the median S.
+      // At the median S and load, the film that puts half the load on the
+      // summits (alpha = 1/2): K F_3/2(lambda) = W/2, d = Alt + lambda SAlt,
+      // i.e. the dry separation of half the load.
       const double n = 0.6;
       const double s_med = std::max(Quantile(s, 0.5), 1e-12);
+      const double w_med = std::max(Quantile(w, 0.5), 1e-9);
+      const double d_half = CalcDrySeparationUm(c.surface, 0.5 * w_med);
       const double d_ref =
-          std::clamp(std::max(c.surface.alt_um, 0.1 * c.surface.salt_um) /
+          std::clamp(std::max(d_half, 0.1 * c.surface.salt_um) /
                          std::pow(s_med / kSommerfeldRefUm, n),
                      2e-4,
                      5e2);
@@ -178,8 +183,8 @@ double PredictJointFriction(JointModelKind kind,
       const double s =
           CalcSommerfeldUm(eta_pa_s, v_mm_s, load_n, config.contact);
       MixedFrictionThetaRow J;
-      const double f =
-          CalcMixedFriction(t, config.surface, s, J_mu_theta ? &J : nullptr);
+      const double f = CalcMixedFriction(
+          t, config.surface, s, load_n, J_mu_theta ? &J : nullptr);
       if (J_mu_theta) *J_mu_theta = J;
       return f;
     }
@@ -453,8 +458,9 @@ JointData SimulateJointData(const MixedFrictionTheta& theta,
     const double s =
         CalcSommerfeldUm(eta, v_mm_s[i], load_n[i], config.contact);
     d.eta_pa_s.push_back(eta);
-    d.mu.push_back(SampleContactFriction(theta, config.surface, s, &rng) +
-                   noise * normal(rng));
+    d.mu.push_back(
+        SampleContactFriction(theta, config.surface, s, load_n[i], &rng) +
+        noise * normal(rng));
   }
   return d;
 }

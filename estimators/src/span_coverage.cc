@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <stdexcept>
 #include <utility>
 
@@ -261,6 +262,63 @@ HullSpanCoverage CalcHullSpanCoverage(
     out.span_pct =
         std::clamp(100.0 * out.hull_area / out.material_hull_area, 0.0, 100.0);
   out.reliable = out.span_pct >= 50.0;
+  return out;
+}
+
+MaterialHullCoverage CalcMaterialHullCoverage(const std::vector<double>& fn_n,
+                                              const std::vector<double>& v_mm_s,
+                                              const std::vector<int>& stroke,
+                                              int max_strokes) {
+  if (fn_n.size() != v_mm_s.size())
+    throw std::invalid_argument("fn_n and v_mm_s differ in length (" +
+                                std::to_string(fn_n.size()) + " vs " +
+                                std::to_string(v_mm_s.size()) + ")");
+  if (!stroke.empty() && stroke.size() != fn_n.size())
+    throw std::invalid_argument("stroke and fn_n differ in length (" +
+                                std::to_string(stroke.size()) + " vs " +
+                                std::to_string(fn_n.size()) + ")");
+  if (max_strokes < 0)
+    throw std::invalid_argument("max_strokes = " + std::to_string(max_strokes) +
+                                " (must be >= 0)");
+  MaterialHullCoverage out;
+  std::vector<std::pair<double, double>> all;
+  all.reserve(fn_n.size());
+  std::map<int, std::vector<std::pair<double, double>>> by;
+  for (std::size_t i = 0; i < fn_n.size(); ++i) {
+    if (!(std::isfinite(fn_n[i]) && std::isfinite(v_mm_s[i]))) continue;
+    all.emplace_back(fn_n[i], v_mm_s[i]);
+    if (!stroke.empty()) by[stroke[i]].emplace_back(fn_n[i], v_mm_s[i]);
+  }
+  out.samples = static_cast<int>(all.size());
+  out.hull = CalcConvexHull(std::move(all));
+  // Shoelace over the hull (the same area CalcConvexHullArea gives).
+  double twice = 0;
+  for (std::size_t i = 0; i < out.hull.size(); ++i) {
+    const auto& p = out.hull[i];
+    const auto& q = out.hull[(i + 1) % out.hull.size()];
+    twice += p.first * q.second - q.first * p.second;
+  }
+  out.hull_area = out.hull.size() >= 3 ? std::fabs(twice) / 2.0 : 0.0;
+  std::size_t skip = by.size() > static_cast<std::size_t>(max_strokes)
+                         ? by.size() - static_cast<std::size_t>(max_strokes)
+                         : 0;
+  for (auto& [id, points] : by) {
+    if (skip > 0) {
+      --skip;
+      continue;
+    }
+    StrokeHullCoverage s;
+    s.stroke = id;
+    s.coverage.samples = static_cast<int>(points.size());
+    s.coverage.material_samples = out.samples;
+    s.coverage.hull_area = CalcConvexHullArea(std::move(points));
+    s.coverage.material_hull_area = out.hull_area;
+    if (out.hull_area > 0)
+      s.coverage.span_pct =
+          std::clamp(100.0 * s.coverage.hull_area / out.hull_area, 0.0, 100.0);
+    s.coverage.reliable = s.coverage.span_pct >= 50.0;
+    out.strokes.push_back(s);
+  }
   return out;
 }
 

@@ -59,6 +59,18 @@ TEST(IdentifyMaterial, EqualsTheStepsOnOneAndTwoThreads) {
     EXPECT_EQ(id.conditional.knot_c2, conditional.knot_c2);
     EXPECT_EQ(id.coverage.span_pct, coverage.span_pct);
     EXPECT_EQ(id.coverage.samples, coverage.samples);
+    // The paper's hull-relative coverage per stroke (III-C-2).
+    std::vector<int> slip_stroke;
+    for (std::size_t i = 0; i < labelled.size(); ++i)
+      if (labelled.slip[i]) slip_stroke.push_back(labelled.stroke[i]);
+    const MaterialHullCoverage hull =
+        CalcMaterialHullCoverage(fn, v, slip_stroke);
+    ASSERT_FALSE(hull.strokes.empty());
+    ASSERT_EQ(id.hull.strokes.size(), hull.strokes.size());
+    EXPECT_EQ(id.hull.hull_area, hull.hull_area);
+    for (std::size_t k = 0; k < hull.strokes.size(); ++k)
+      EXPECT_EQ(id.hull.strokes[k].coverage.span_pct,
+                hull.strokes[k].coverage.span_pct);
     const RegressionModel& m = id.fit.model.mu;
     EXPECT_NEAR(m.beta(0), 0.9, 4 * m.std_err(0));
     EXPECT_NEAR(m.beta(1), 0.004, 4 * m.std_err(1));

@@ -53,67 +53,199 @@ States MakeStates(int n, unsigned seed, double t_lo = 20, double t_hi = 80) {
   return s;
 }
 
-TEST(MixedFriction, ReproducesTheStribeckRangeOfPaper002) {
-  const AsperitySurface surface;
-  const MixedFrictionTheta theta = Truth();
-  double previous = 1.0;
-  double sd_max = 0, s_at_sd_max = 0;
-  for (double log_s = -6; log_s <= 1; log_s += 0.05) {
-    const double s = std::pow(10.0, log_s);
-    const double f = CalcMixedFriction(theta, surface, s);
-    EXPECT_LE(f, previous + 1e-15) << "not monotone at S = " << s;
-    previous = f;
-    const double sd = CalcMixedFrictionDispersion(theta, surface, s);
-    if (sd > sd_max) {
-      sd_max = sd;
-      s_at_sd_max = s;
-    }
+// Reference F_nu(lambda) by a rule independent of CalcSummitIntegrals: t =
+// e^x, F_nu = int e^((nu+1) x) phi(lambda + e^x) dx, trapezoid in x (smooth,
+// decaying at both ends, so the trapezoid converges exponentially).
+double ReferenceF(double nu, double lambda) {
+  const double x_hi = std::log(std::max(0.0, -lambda) + 12.0);
+  const double x_lo = -90.0 / (nu + 1.0);
+  const double h = 0.002;
+  long double sum = 0;
+  for (double x = x_lo; x <= x_hi; x += h) {
+    const double t = std::exp(x);
+    const double s = lambda + t;
+    sum += std::exp((nu + 1) * x - 0.5 * s * s);
   }
-  // Mixed regime ~0.1 at small S, full film ~0.004 at large S (Sec. 5.1).
-  EXPECT_NEAR(CalcMixedFriction(theta, surface, 1e-6), 0.1, 1e-3);
-  EXPECT_NEAR(CalcMixedFriction(theta, surface, 10.0), 0.004, 1e-5);
-  EXPECT_NEAR(CalcMixedFriction(theta, surface, 0.0), 0.1, 1e-3);
-  // Dispersion: none at either end, largest in the mixed regime where
-  // d = Alt (alpha = 1/2), i.e. at S = S_ref for d_ref = Alt.
-  EXPECT_LT(CalcMixedFrictionDispersion(theta, surface, 1e-6), 0.1 * sd_max);
-  EXPECT_LT(CalcMixedFrictionDispersion(theta, surface, 10.0), 1e-6);
-  EXPECT_NEAR(std::log10(s_at_sd_max), std::log10(kSommerfeldRefUm), 0.06);
-  const double expected_sd =
-      0.096 * std::sqrt(0.25 * std::exp(0.16) / surface.summits);
-  EXPECT_NEAR(sd_max, expected_sd, 1e-3 * expected_sd);
+  return static_cast<double>(sum * h) * 0.3989422804014327;
 }
 
-TEST(MixedFriction, SolidFractionIsTheGaussianTail) {
+TEST(SummitIntegrals, MatchAnIndependentQuadratureAndClosedForms) {
+  double worst = 0, worst_lambda = 0;
+  for (double lambda = -60; lambda <= 30; lambda += 0.37) {
+    const SummitIntegrals f = CalcSummitIntegrals(lambda);
+    const double got[4] = {f.f_m12, f.f_12, f.f_32, f.f_3};
+    const double nu[4] = {-0.5, 0.5, 1.5, 3.0};
+    for (int k = 0; k < 4; ++k) {
+      const double ref = ReferenceF(nu[k], lambda);
+      if (ref < 1e-280) continue;  // below double range: nothing to compare
+      const double rel = std::abs(got[k] - ref) / ref;
+      if (rel > worst) {
+        worst = rel;
+        worst_lambda = lambda;
+      }
+    }
+  }
+  EXPECT_LT(worst, 1e-12) << "at lambda = " << worst_lambda;
+  // F_nu(0) = 2^((nu-1)/2) Gamma((nu+1)/2) / sqrt(2 pi).
+  const SummitIntegrals f0 = CalcSummitIntegrals(0.0);
+  auto at0 = [](double nu) {
+    return std::pow(2.0, 0.5 * (nu - 1)) * std::tgamma(0.5 * (nu + 1)) /
+           std::sqrt(2 * M_PI);
+  };
+  EXPECT_NEAR(f0.f_m12, at0(-0.5), 1e-14 * at0(-0.5));
+  EXPECT_NEAR(f0.f_12, at0(0.5), 1e-14 * at0(0.5));
+  EXPECT_NEAR(f0.f_32, at0(1.5), 1e-14 * at0(1.5));
+  EXPECT_NEAR(f0.f_3, at0(3.0), 1e-14 * at0(3.0));
+  // Integer order in closed form: F_0 = Q, F_1 = phi - l Q,
+  // F_2 = F_0 - l F_1, F_3 = 2 F_1 - l F_2; half orders by the recursion
+  // F_3/2 = 1/2 F_-1/2 - l F_1/2 (integration by parts).
+  for (double l = -20; l <= 3; l += 0.5) {
+    const SummitIntegrals f = CalcSummitIntegrals(l);
+    const double q = 0.5 * std::erfc(l / std::sqrt(2.0));
+    const double phi = std::exp(-0.5 * l * l) / std::sqrt(2 * M_PI);
+    const double f1 = phi - l * q, f2 = q - l * f1, f3 = 2 * f1 - l * f2;
+    EXPECT_NEAR(f.f_3, f3, 1e-12 * f3) << l;
+    EXPECT_NEAR(f.f_32, 0.5 * f.f_m12 - l * f.f_12, 1e-12 * f.f_32) << l;
+  }
+  EXPECT_TRUE(std::isnan(CalcSummitIntegrals(NAN).f_32));
+}
+
+TEST(MixedFriction, SolidFractionIsTheHertzLoadFractionOfEq6) {
+  // alpha against a brute-force double integral of eq. 6's elastic term
+  // over p(z, R) = p1(z) p2(R) (eq. 7), summing N 4/3 E* sqrt(R) (z-d)^3/2
+  // on a grid in z and ln R* (no factorisation, no F_3/2 used).
   AsperitySurface s;
   s.alt_um = 0.4;
   s.salt_um = 0.2;
-  EXPECT_NEAR(CalcSolidFraction(s, 0.4), 0.5, 1e-15);
-  EXPECT_NEAR(CalcSolidFraction(s, 0.4 + 0.2 * 1.959963985), 0.025, 1e-9);
-  EXPECT_NEAR(CalcSolidFraction(s, 0.4 - 0.2), 0.841344746, 1e-9);
+  s.radius_log_sd = 0.7;
+  s.radius_log_mean = 0.3;
+  for (double d : {0.2, 0.4, 0.7}) {
+    const double load = 60.0;
+    long double w = 0;
+    const int nz = 4000, nr = 400;
+    const double z_hi = s.alt_um + 12 * s.salt_um;
+    const double hz = (z_hi - d) / nz;
+    const double hr = 16.0 * s.radius_log_sd / nr;
+    for (int i = 0; i <= nz; ++i) {
+      const double z = d + hz * i;
+      const double wz = (i == 0 || i == nz) ? 0.5 : 1.0;
+      const double p1 =
+          std::exp(-0.5 * std::pow((z - s.alt_um) / s.salt_um, 2)) /
+          (s.salt_um * std::sqrt(2 * M_PI));  // eq. 2 [1/um]
+      const double delta_mm = (z - d) * 1e-3;
+      for (int j = 0; j <= nr; ++j) {
+        const double x = s.radius_log_mean - 8 * s.radius_log_sd + hr * j;
+        const double wr = (j == 0 || j == nr) ? 0.5 : 1.0;
+        const double p2 =  // eq. 4 in x = ln R*
+            std::exp(-0.5 *
+                     std::pow((x - s.radius_log_mean) / s.radius_log_sd, 2)) /
+            (s.radius_log_sd * std::sqrt(2 * M_PI));
+        const double r_mm = s.srad_um * std::exp(x) * 1e-3;  // eq. 5
+        w += wz * wr * p1 * p2 * (4.0 / 3.0) * s.modulus_gpa * 1e3 *
+             std::sqrt(r_mm) * std::pow(delta_mm, 1.5);
+      }
+    }
+    const double w_solid = static_cast<double>(w) * hz * hr * s.summits;
+    const double alpha = CalcSolidFraction(s, d, load);
+    ASSERT_LT(w_solid, load) << d;  // mixed regime: not clipped
+    // The trapezoid in z meets the (z-d)^3/2 endpoint: error ~ hz^2.5.
+    EXPECT_NEAR(alpha, w_solid / load, 1e-5 * alpha) << "d = " << d;
+    // Not the fraction of summits touching (the pre-issue-19 alpha).
+    EXPECT_GT(std::abs(alpha - CalcTouchingFraction(s, d)), 0.05) << d;
+  }
+}
+
+TEST(MixedFriction, SolidFractionLimitsDryAndFullFilm) {
+  const AsperitySurface s;  // K = 17.2 N, Hertz capacity at d = 0: 110 N
+  const double k = CalcAsperityLoadScaleN(s);
+  EXPECT_NEAR(k,
+              400 * 4.0 / 3 * 115.4e3 * std::sqrt(0.02) * std::exp(0.08) *
+                  std::pow(0.15e-3, 1.5),
+              1e-9 * k);
+  for (double load : {5.0, 50.0, 500.0, 5000.0}) {
+    // No film: dry, alpha = 1, at every load (d_dry > 0 or < 0).
+    EXPECT_EQ(CalcSolidFraction(s, 0.0, load), 1.0) << load;
+    const double d_dry = CalcDrySeparationUm(s, load);
+    const double lambda = (d_dry - s.alt_um) / s.salt_um;
+    EXPECT_NEAR(k * CalcSummitIntegrals(lambda).f_32, load, 1e-10 * load);
+    EXPECT_EQ(d_dry<0, load> 110) << load << " d_dry " << d_dry;
+    double previous = 1.0;
+    const double start = std::max(0.0, d_dry) + 1e-3;
+    for (double d = start; d < 3.0; d += 0.01) {
+      double J = 0;
+      const double a = CalcSolidFraction(s, d, load, &J);
+      ASSERT_GE(a, 0.0);
+      ASSERT_LE(a, previous) << "load " << load << " d " << d;
+      ASSERT_LE(J, 0.0);
+      previous = a;
+    }
+    // Full film: Alt + 12 SAlt above the datum carries nothing.
+    EXPECT_LT(CalcSolidFraction(
+                  s, std::max(0.0, -d_dry) + s.alt_um + 12 * s.salt_um, load),
+              1e-25)
+        << load;
+  }
+  // Below the dry separation the summits carry the whole load.
+  EXPECT_EQ(CalcSolidFraction(s, 0.5 * CalcDrySeparationUm(s, 50.0), 50.0),
+            1.0);
+  // At one film thickness a heavier load leaves a smaller share to the
+  // summits (their Hertz load is fixed by d; the fluid takes the rest).
+  EXPECT_GT(CalcSolidFraction(s, 0.45, 20.0),
+            2 * CalcSolidFraction(s, 0.45, 80.0));
+  EXPECT_TRUE(std::isnan(CalcSolidFraction(s, 0.45, 0.0)));
+}
+
+TEST(MixedFriction, ReproducesTheStribeckRangeOfPaper002) {
+  const AsperitySurface surface;
+  const MixedFrictionTheta theta = Truth();
+  for (double load : {20.0, 100.0, 200.0}) {
+    double previous = 1.0;
+    double sd_max = 0;
+    for (double log_s = -6; log_s <= 1; log_s += 0.05) {
+      const double s = std::pow(10.0, log_s);
+      const double f = CalcMixedFriction(theta, surface, s, load);
+      EXPECT_LE(f, previous + 1e-15) << "not monotone at S = " << s;
+      previous = f;
+      sd_max = std::max(sd_max,
+                        CalcMixedFrictionDispersion(theta, surface, s, load));
+    }
+    // Mixed regime ~0.1 at small S, full film ~0.004 at large S (Sec. 5.1);
+    // dry (f = f_s exactly) with no film.
+    EXPECT_NEAR(CalcMixedFriction(theta, surface, 1e-6, load), 0.1, 1e-3);
+    EXPECT_NEAR(CalcMixedFriction(theta, surface, 10.0, load), 0.004, 1e-5);
+    EXPECT_EQ(CalcMixedFriction(theta, surface, 0.0, load), 0.1);
+    // Dispersion: none at either end, some in the mixed regime.
+    EXPECT_GT(sd_max, 1e-4) << load;
+    EXPECT_EQ(CalcMixedFrictionDispersion(theta, surface, 0.0, load), 0.0);
+    EXPECT_LT(CalcMixedFrictionDispersion(theta, surface, 10.0, load), 1e-9);
+  }
 }
 
 TEST(MixedFriction, JacobiansMatchCentralDifferences) {
   const AsperitySurface surface;
-  for (double s : {2e-3, 1e-2, 4e-2}) {
-    MixedFrictionThetaRow J;
-    double J_s = 0;
-    CalcMixedFriction(Truth(), surface, s, &J, &J_s);
-    auto f_theta = [&](const VectorXd& x) {
-      return VectorXd::Constant(
-          1, CalcMixedFriction(MixedFrictionTheta(x), surface, s));
-    };
-    EXPECT_TRUE(internal::CheckJacobian<double>(
-        f_theta, VectorXd(Truth()), MatrixXd(J)))
-        << "S = " << s;
-    auto f_s = [&](const VectorXd& x) {
-      return VectorXd::Constant(1, CalcMixedFriction(Truth(), surface, x[0]));
-    };
-    EXPECT_TRUE(internal::CheckJacobian<double>(f_s,
-                                                VectorXd::Constant(1, s),
-                                                MatrixXd::Constant(1, 1, J_s),
-                                                1e-6,
-                                                1e-6))
-        << "S = " << s;
+  for (double load : {30.0, 150.0}) {
+    for (double s : {3e-4, 1e-3, 4e-3, 1e-2}) {
+      MixedFrictionThetaRow J;
+      double J_s = 0;
+      CalcMixedFriction(Truth(), surface, s, load, &J, &J_s);
+      auto f_theta = [&](const VectorXd& x) {
+        return VectorXd::Constant(
+            1, CalcMixedFriction(MixedFrictionTheta(x), surface, s, load));
+      };
+      EXPECT_TRUE(internal::CheckJacobian<double>(
+          f_theta, VectorXd(Truth()), MatrixXd(J)))
+          << "S = " << s << " load " << load;
+      auto f_s = [&](const VectorXd& x) {
+        return VectorXd::Constant(
+            1, CalcMixedFriction(Truth(), surface, x[0], load));
+      };
+      EXPECT_TRUE(internal::CheckJacobian<double>(f_s,
+                                                  VectorXd::Constant(1, s),
+                                                  MatrixXd::Constant(1, 1, J_s),
+                                                  1e-6 * s,
+                                                  1e-6))
+          << "S = " << s << " load " << load;
+    }
   }
   const JointConfig config;
   VectorXd sv(5);
@@ -135,30 +267,38 @@ TEST(MixedFriction, JacobiansMatchCentralDifferences) {
 }
 
 TEST(MixedFriction, SampledContactsMatchTheDispersionFormula) {
-  // 3000 contacts of 400 summits each (seed 11) at alpha ~ 0.3.
+  // 3000 contacts of 400 Hertz summits each (seed 11), mixed regime.
   const AsperitySurface surface;
   const MixedFrictionTheta theta = Truth();
-  const double s = 0.02;
+  const double load = 60.0;
+  const double s = 5e-3;
+  const double alpha =
+      CalcSolidFraction(surface, CalcFilmThicknessUm(theta, s), load);
+  ASSERT_GT(alpha, 0.2);
+  ASSERT_LT(alpha, 0.6);
   std::mt19937_64 rng(11);
   const int n = 3000;
   double sum = 0, sum2 = 0;
   for (int i = 0; i < n; ++i) {
-    const double f = SampleContactFriction(theta, surface, s, &rng);
+    const double f = SampleContactFriction(theta, surface, s, load, &rng);
     sum += f;
     sum2 += f * f;
   }
   const double mean = sum / n;
   const double sd = std::sqrt(sum2 / n - mean * mean);
-  const double f = CalcMixedFriction(theta, surface, s);
-  const double sd_model = CalcMixedFrictionDispersion(theta, surface, s);
+  const double f = CalcMixedFriction(theta, surface, s, load);
+  const double sd_model = CalcMixedFrictionDispersion(theta, surface, s, load);
+  std::cout << "alpha " << alpha << " f " << f << " sampled " << mean
+            << " sd model " << sd_model << " sampled " << sd << "\n";
   ASSERT_GT(sd_model, 1e-3);
   EXPECT_NEAR(mean, f, 4 * sd_model / std::sqrt(n));
-  // sd of a sample sd ~ sd / sqrt(2n) = 1.3 %; allow 6 %.
-  EXPECT_NEAR(sd, sd_model, 0.06 * sd_model);
-  // Without radius scatter (a = 0) the dispersion is binomial.
+  // sd of a sample sd ~ sd / sqrt(2n) (1.3 %) plus the second-order terms
+  // of the ratio W_solid / W (heavy-tailed Hertz loads); allow 8 %.
+  EXPECT_NEAR(sd, sd_model, 0.08 * sd_model);
+  // Without radius scatter (a = 0) the dispersion is smaller.
   AsperitySurface equal = surface;
   equal.radius_log_sd = 0;
-  EXPECT_LT(CalcMixedFrictionDispersion(theta, equal, s), sd_model);
+  EXPECT_LT(CalcMixedFrictionDispersion(theta, equal, s, load), sd_model);
 }
 
 TEST(MixedFriction, TableMatchesTheClosedForm) {
@@ -173,16 +313,24 @@ TEST(MixedFriction, TableMatchesTheClosedForm) {
     const double temp = -10.0 + 120.0 * u(rng);
     const double eta = CalcViscosity(c.lubricant, temp);
     const double s = CalcSommerfeldUm(eta, v, load, c.contact);
-    const double exact = CalcMixedFriction(Truth(), c.surface, s);
+    const double exact = CalcMixedFriction(Truth(), c.surface, s, load);
     worst = std::max(worst, std::abs(table.Eval(v, load, temp) - exact));
-    worst = std::max(worst, std::abs(table.EvalSommerfeld(s) - exact));
+    worst = std::max(worst, std::abs(table.EvalSommerfeld(s, load) - exact));
+  }
+  // Heavy loads: lambda_dry far below -8 (asymptotic F_3/2).
+  for (double load : {2e3, 1e4, 1e5, 1e7}) {
+    for (double s = 1e-6; s < 10; s *= 1.7) {
+      const double exact = CalcMixedFriction(Truth(), c.surface, s, load);
+      worst = std::max(worst, std::abs(table.EvalSommerfeld(s, load) - exact));
+    }
   }
   EXPECT_LT(worst, 1e-9);
   EXPECT_TRUE(std::isnan(table.Eval(1, 1, -200)));
-  EXPECT_NEAR(table.EvalSommerfeld(1e-30),
-              CalcMixedFriction(Truth(), c.surface, 1e-30),
+  EXPECT_TRUE(std::isnan(table.EvalSommerfeld(1e-3, 0.0)));
+  EXPECT_NEAR(table.EvalSommerfeld(1e-30, 50.0),
+              CalcMixedFriction(Truth(), c.surface, 1e-30, 50.0),
               1e-12);
-  EXPECT_NEAR(table.EvalSommerfeld(1e6), 0.004, 1e-15);
+  EXPECT_NEAR(table.EvalSommerfeld(1e6, 50.0), 0.004, 1e-15);
 }
 
 TEST(MixedFriction, ViscosityFollowsTheDocumentedVogelConstants) {
@@ -205,16 +353,21 @@ TEST(JointIdentification, RecoversTheMixedModelWithCovariance) {
   JointFitOptions options;
   options.start = Eigen::Vector4d(0.3, 0.03, 3.0, 1.5);
   // The start is far from a solution.
-  const JointFitResult at_start =
-      FitJointModel(JointModelKind::kMixed, data, config, [&] {
-        JointFitOptions o = options;
-        o.max_iterations = 1;
-        return o;
-      }());
+  double start_ss = 0;
+  for (std::size_t i = 0; i < data.size(); ++i)
+    start_ss += std::pow(PredictJointFriction(JointModelKind::kMixed,
+                                              options.start,
+                                              config,
+                                              data.v_mm_s[i],
+                                              data.load_n[i],
+                                              data.eta_pa_s[i]) -
+                             data.mu[i],
+                         2);
+  const double start_rms = std::sqrt(start_ss / data.size());
   const JointFitResult r =
       FitJointModel(JointModelKind::kMixed, data, config, options);
   ASSERT_EQ(r.status, JointFitStatus::kConverged) << r.why;
-  EXPECT_GT(at_start.residual_rms, 5 * r.residual_rms);
+  EXPECT_GT(start_rms, 5 * r.residual_rms);
   const char* names[] = {"f_s", "f_l", "d_ref_um", "n"};
   for (int i = 0; i < 4; ++i) {
     const double sd = std::sqrt(r.P_theta(i, i));
@@ -247,6 +400,102 @@ TEST(JointIdentification, CoverageOfTheCovarianceOverSeeds) {
   }
   // 2-sigma intervals should hold ~95 %; 32 draws: at least 26 (p ~ 0.01).
   EXPECT_GE(inside, 26) << inside << " of " << total;
+}
+
+// A generator wider than the mixed model's assumptions, summit by summit:
+// altitude and radius correlated (rho 0.3; eq. 7 assumes independence),
+// summit count per contact drawn in [300, 500] (model: 400), film
+// thickness off the film law by a lognormal factor (sd 5 %), and Student-t
+// sensor noise with 3 degrees of freedom (scale 0.002). Seeded.
+struct Widening {
+  double rho = 0.3;           // altitude-radius correlation
+  double film_jitter = 0.05;  // lognormal sd of d around the film law
+};
+
+JointData SimulateWiderJointData(const MixedFrictionTheta& theta,
+                                 const JointConfig& config,
+                                 const States& st,
+                                 unsigned seed,
+                                 const Widening& wide = {}) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  std::student_t_distribution<double> student(3.0);
+  std::uniform_int_distribution<int> count(300, 500);
+  const AsperitySurface& surf = config.surface;
+  const double rho = wide.rho, e_star = surf.modulus_gpa * 1e3;
+  JointData d;
+  d.v_mm_s = st.v;
+  d.load_n = st.load;
+  d.temp_c = st.temp;
+  for (std::size_t i = 0; i < st.v.size(); ++i) {
+    const double eta = CalcViscosity(config.lubricant, st.temp[i]);
+    const double s = CalcSommerfeldUm(eta, st.v[i], st.load[i], config.contact);
+    double film = CalcFilmThicknessUm(theta, s) *
+                  std::exp(wide.film_jitter * normal(rng));
+    film += std::min(0.0, CalcDrySeparationUm(surf, st.load[i]));
+    const int n = count(rng);
+    double w = 0;
+    for (int k = 0; k < n; ++k) {
+      const double xz = normal(rng);
+      const double xr = rho * xz + std::sqrt(1 - rho * rho) * normal(rng);
+      const double z = surf.alt_um + surf.salt_um * xz;
+      if (z <= film) continue;
+      const double r_mm =
+          surf.srad_um * 1e-3 *
+          std::exp(surf.radius_log_mean + surf.radius_log_sd * xr);
+      const double delta_mm = (z - film) * 1e-3;
+      w +=
+          4.0 / 3.0 * e_star * std::sqrt(r_mm) * delta_mm * std::sqrt(delta_mm);
+    }
+    const double alpha = std::min(1.0, w / st.load[i]);
+    d.eta_pa_s.push_back(eta);
+    d.mu.push_back(alpha * theta[0] + (1 - alpha) * theta[1] +
+                   0.002 * student(rng));
+  }
+  return d;
+}
+
+TEST(JointIdentification, RecoversFromAWiderGenerator) {
+  // Three generators, 6 seeds each, 400 samples, the estimator's nominal
+  // config. Stated tolerance: friction coefficients within 0.005 (f_s comes
+  // out about 0.002 low: alpha = min(1, sum / W) with a random summit count
+  // sits below its mean near the dry limit, Jensen), d_ref
+  // within 10 %, n within 10 % when altitude and radius are independent
+  // (eq. 7 holds) and within 20 % when they are correlated (rho 0.3 biases
+  // n upwards by about 0.05 on average: taller summits are blunter and carry
+  // more load, which the fit reads as a steeper film law).
+  const JointConfig config;
+  const char* names[] = {"f_s", "f_l", "d_ref_um", "n"};
+  for (const Widening w :
+       {Widening{0.0, 0.0}, Widening{0.0, 0.05}, Widening{0.3, 0.05}}) {
+    int inside = 0, total = 0;
+    double bias[4] = {0, 0, 0, 0};
+    for (unsigned seed = 31; seed < 37; ++seed) {
+      const States st = MakeStates(400, seed);
+      const JointData data =
+          SimulateWiderJointData(Truth(), config, st, seed, w);
+      const JointFitResult r =
+          FitJointModel(JointModelKind::kMixed, data, config);
+      ASSERT_EQ(r.status, JointFitStatus::kConverged) << seed << ": " << r.why;
+      for (int i = 0; i < 4; ++i, ++total) {
+        const double sd = std::sqrt(r.P_theta(i, i));
+        if (std::abs(r.theta[i] - Truth()[i]) <= 2 * sd) ++inside;
+        bias[i] += (r.theta[i] - Truth()[i]) / 6;
+        const double tol = i < 2   ? 5e-3
+                           : i < 3 ? 0.1 * Truth()[i]
+                                   : (w.rho > 0 ? 0.2 : 0.1) * Truth()[i];
+        EXPECT_NEAR(r.theta[i], Truth()[i], tol)
+            << "rho " << w.rho << " jitter " << w.film_jitter << " seed "
+            << seed << " " << names[i] << " +- " << sd;
+      }
+    }
+    // Reported, not asserted at 95 %: the robust covariance does not see
+    // the misspecification bias.
+    std::cout << "rho " << w.rho << " film jitter " << w.film_jitter
+              << ": mean error f_s " << bias[0] << ", f_l " << bias[1]
+              << ", d_ref " << bias[2] << ", n " << bias[3] << "; " << inside
+              << " of " << total << " inside 2 sd\n";
+  }
 }
 
 TEST(JointIdentification, TemperatureEntersThroughSommerfeld) {
@@ -333,16 +582,17 @@ TEST(JointWear, WearCoefficientFallsWithSommerfeldAndFrictionDrifts) {
   const WearParams wear;
   double previous = 1.0;
   for (double s : {1e-5, 1e-3, 1e-2, 3e-2, 1.0}) {
-    const double k = CalcWearCoefficient(Truth(), surface, wear, s);
+    const double k = CalcWearCoefficient(Truth(), surface, wear, s, 100.0);
     EXPECT_LE(k, previous) << s;
     previous = k;
   }
-  EXPECT_NEAR(CalcWearCoefficient(Truth(), surface, wear, 1e-6), 1e-6, 1e-9);
-  EXPECT_LT(CalcWearCoefficient(Truth(), surface, wear, 10.0), 1e-12);
+  EXPECT_NEAR(
+      CalcWearCoefficient(Truth(), surface, wear, 1e-6, 100.0), 1e-6, 1e-9);
+  EXPECT_LT(CalcWearCoefficient(Truth(), surface, wear, 10.0, 100.0), 1e-12);
   JointContact contact;
-  // 100 N on 50 mm^2, 1 km of sliding in the mixed regime.
+  // 50 N on 50 mm^2, 1 km of sliding in the mixed regime (alpha 0.87).
   const auto run =
-      PredictWearDrift(Truth(), surface, wear, contact, 0.01, 100.0, 1e6, 11);
+      PredictWearDrift(Truth(), surface, wear, contact, 0.003, 50.0, 1e6, 11);
   ASSERT_EQ(run.size(), 11u);
   EXPECT_EQ(run.front().worn_um, 0.0);
   for (std::size_t i = 1; i < run.size(); ++i) {
@@ -357,7 +607,7 @@ TEST(JointWear, WearCoefficientFallsWithSommerfeldAndFrictionDrifts) {
   EXPECT_LT(film.back().worn_um, 1e-9);
   EXPECT_EQ(ThrowMessage([&] {
               PredictWearDrift(
-                  Truth(), surface, wear, contact, 0.01, 100.0, -1, 3);
+                  Truth(), surface, wear, contact, 0.003, 50.0, -1, 3);
             }),
             "distance_mm = -1 (must be > 0)");
 }
@@ -371,7 +621,7 @@ TEST(JointWear, DiagnosisNamesSlidingDistanceOnJointData) {
   WearParams wear;
   wear.k_solid = 5e-5;
   const JointContact contact;
-  const double s_um = 0.004, load_n = 100, v_mm_s = 100;
+  const double s_um = 0.003, load_n = 50, v_mm_s = 100;
   constexpr int kStrokes = 40, kPerStroke = 60;
   const double stroke_mm = v_mm_s * (kPerStroke - 1) * 0.02;
   const auto drift = PredictWearDrift(

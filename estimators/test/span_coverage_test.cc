@@ -227,5 +227,68 @@ TEST(HullSpanCoverage, IsRelativeToTheMaterialsHull) {
   EXPECT_THROW(CalcHullSpanCoverage({}, {}, {1}, {}), std::invalid_argument);
 }
 
+TEST(MaterialHullCoverage, EqualsTheOneStrokeFunctionForEveryStroke) {
+  // 30 strokes of random extent (seed 9) plus a NaN and a degenerate one.
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<double> fn, v;
+  std::vector<int> stroke;
+  for (int k = 0; k < 30; ++k) {
+    const double f0 = 0.5 + 3 * u(rng), v0 = 15 + 50 * u(rng);
+    const double df = 0.1 + u(rng), dv = 1 + 20 * u(rng);
+    for (int i = 0; i < 40; ++i) {
+      fn.push_back(f0 + df * u(rng));
+      v.push_back(v0 + dv * u(rng));
+      stroke.push_back(100 + 3 * k);
+    }
+  }
+  fn.push_back(NAN);
+  v.push_back(20);
+  stroke.push_back(100);
+  fn.push_back(1.0);
+  v.push_back(20);
+  stroke.push_back(7);  // a one-point stroke: 0 %
+  const MaterialHullCoverage m = CalcMaterialHullCoverage(fn, v, stroke);
+  EXPECT_EQ(m.samples, static_cast<int>(fn.size()) - 1);
+  EXPECT_NEAR(m.hull_area,
+              CalcConvexHullArea([&] {
+                std::vector<std::pair<double, double>> p;
+                for (std::size_t i = 0; i + 2 < fn.size(); ++i)
+                  p.emplace_back(fn[i], v[i]);
+                p.emplace_back(1.0, 20.0);
+                return p;
+              }()),
+              1e-9 * m.hull_area);
+  ASSERT_EQ(m.strokes.size(), 31u);
+  EXPECT_EQ(m.strokes.front().stroke, 7);
+  EXPECT_EQ(m.strokes.front().coverage.span_pct, 0.0);
+  for (const StrokeHullCoverage& s : m.strokes) {
+    std::vector<double> sf, sv;
+    for (std::size_t i = 0; i < fn.size(); ++i)
+      if (stroke[i] == s.stroke) {
+        sf.push_back(fn[i]);
+        sv.push_back(v[i]);
+      }
+    const HullSpanCoverage one = CalcHullSpanCoverage(sf, sv, fn, v);
+    EXPECT_NEAR(s.coverage.span_pct, one.span_pct, 1e-9) << s.stroke;
+    EXPECT_NEAR(s.coverage.hull_area, one.hull_area, 1e-12) << s.stroke;
+    EXPECT_EQ(s.coverage.reliable, one.reliable) << s.stroke;
+    EXPECT_EQ(s.coverage.samples, one.samples) << s.stroke;
+    EXPECT_EQ(s.coverage.material_samples, m.samples);
+  }
+  // The newest strokes when capped; none without stroke ids.
+  const MaterialHullCoverage capped =
+      CalcMaterialHullCoverage(fn, v, stroke, 5);
+  ASSERT_EQ(capped.strokes.size(), 5u);
+  EXPECT_EQ(capped.strokes.back().stroke, 100 + 3 * 29);
+  EXPECT_TRUE(CalcMaterialHullCoverage(fn, v, {}).strokes.empty());
+  EXPECT_THROW(CalcMaterialHullCoverage({1, 2}, {1}, {}),
+               std::invalid_argument);
+  EXPECT_THROW(CalcMaterialHullCoverage({1, 2}, {1, 2}, {1}),
+               std::invalid_argument);
+  EXPECT_THROW(CalcMaterialHullCoverage({1}, {1}, {}, -1),
+               std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace frictiond

@@ -177,7 +177,8 @@ json JointConfigToJson(const JointConfig& c, const WearParams& w) {
         {"radius_log_sd", c.surface.radius_log_sd},
         {"radius_log_mean", c.surface.radius_log_mean},
         {"srad_um", c.surface.srad_um},
-        {"summits", c.surface.summits}}},
+        {"summits", c.surface.summits},
+        {"modulus_gpa", c.surface.modulus_gpa}}},
       {"contact", {{"area_mm2", c.contact.area_mm2}}},
       {"lubricant",
        {{"vogel_a_pa_s", c.lubricant.vogel_a_pa_s},
@@ -197,6 +198,7 @@ void JointConfigFromJson(const json& j, JointConfig* c, WearParams* w) {
     Number(s, "radius_log_mean", "surface.", &c->surface.radius_log_mean);
     Number(s, "srad_um", "surface.", &c->surface.srad_um);
     Number(s, "summits", "surface.", &c->surface.summits);
+    Number(s, "modulus_gpa", "surface.", &c->surface.modulus_gpa);
   }
   Prefixed("surface.", [&] { ValidateSurface(c->surface); });
   if (j.contains("contact")) {

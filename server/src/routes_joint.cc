@@ -107,6 +107,7 @@ HttpResponse HandleUpload(FrictionLibrary& lib, const HttpRequest& req) {
                 "radius_log_mean",
                 "srad_um",
                 "summits",
+                "modulus_gpa",
                 "vogel_a_pa_s",
                 "vogel_b_c",
                 "vogel_c_c",
@@ -129,6 +130,7 @@ HttpResponse HandleUpload(FrictionLibrary& lib, const HttpRequest& req) {
   OptionalParam(req, "radius_log_mean", &c.surface.radius_log_mean);
   OptionalParam(req, "srad_um", &c.surface.srad_um);
   OptionalParam(req, "summits", &c.surface.summits);
+  OptionalParam(req, "modulus_gpa", &c.surface.modulus_gpa);
   OptionalParam(req, "vogel_a_pa_s", &c.lubricant.vogel_a_pa_s);
   OptionalParam(req, "vogel_b_c", &c.lubricant.vogel_b_c);
   OptionalParam(req, "vogel_c_c", &c.lubricant.vogel_c_c);
@@ -285,17 +287,18 @@ struct MixedPrediction {
   double film_um = 0, alpha = 0;
 };
 
-MixedPrediction PredictMixed(const JointFamily& f, double s_um) {
+MixedPrediction PredictMixed(const JointFamily& f, double s_um, double load_n) {
   MixedPrediction p;
   const MixedFrictionTheta theta = f.mixed.theta.head<4>();
   MixedFrictionThetaRow J;
-  p.mu = CalcMixedFriction(theta, f.config.surface, s_um, &J);
-  p.sigma_contact = CalcMixedFrictionDispersion(theta, f.config.surface, s_um);
+  p.mu = CalcMixedFriction(theta, f.config.surface, s_um, load_n, &J);
+  p.sigma_contact =
+      CalcMixedFrictionDispersion(theta, f.config.surface, s_um, load_n);
   const Eigen::Matrix4d P = f.mixed.P_theta.topLeftCorner<4, 4>();
   p.sigma_param = std::sqrt(std::max(0.0, double(J * P * J.transpose())));
   p.sigma = std::hypot(p.sigma_contact, p.sigma_param);
   p.film_um = s_um > 0 ? CalcFilmThicknessUm(theta, s_um) : 0.0;
-  p.alpha = CalcSolidFraction(f.config.surface, p.film_um);
+  p.alpha = CalcSolidFraction(f.config.surface, p.film_um, load_n);
   return p;
 }
 
@@ -335,7 +338,7 @@ HttpResponse HandleFriction(FrictionLibrary& lib, const HttpRequest& req) {
                            "); upload data spanning the Sommerfeld number",
                        body);
   }
-  const MixedPrediction p = PredictMixed(f, st.s_um);
+  const MixedPrediction p = PredictMixed(f, st.s_um, st.load_n);
   body["mu"] = p.mu;
   body["sigma"] = p.sigma;
   body["sigma_contact"] = p.sigma_contact;
@@ -347,7 +350,7 @@ HttpResponse HandleFriction(FrictionLibrary& lib, const HttpRequest& req) {
                    : p.alpha < 0.01 ? "full_film"
                                     : "mixed";
   body["wear_coefficient"] = CalcWearCoefficient(
-      f.mixed.theta.head<4>(), f.config.surface, f.wear, st.s_um);
+      f.mixed.theta.head<4>(), f.config.surface, f.wear, st.s_um, st.load_n);
   return HttpResponse::Json(200, body);
 }
 
@@ -446,7 +449,7 @@ json ResolveFriction(FrictionLibrary& lib, RobotDescription* robot) {
     const double eta = CalcViscosity(lf.family.config.lubricant, ref.temp_c);
     const double s =
         CalcSommerfeldUm(eta, ref.v_mm_s, ref.load_n, lf.family.config.contact);
-    const MixedPrediction p = PredictMixed(lf.family, s);
+    const MixedPrediction p = PredictMixed(lf.family, s, ref.load_n);
     const double lever =
         j.type == JointType::kRevolute ? ref.radius_mm / 1000.0 : 1.0;
     j.sigma_tau = p.sigma * ref.load_n * lever;

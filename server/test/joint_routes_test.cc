@@ -117,7 +117,7 @@ TEST_F(JointRoutesTest, UploadFitsTheThreeModelsAndServesFriction) {
   const json a = json::parse(q.body);
   const double eta = CalcViscosity(Lubricant{}, 40.0);
   const double s = CalcSommerfeldUm(eta, 200, 100, JointContact{});
-  const double truth = CalcMixedFriction(Truth(), AsperitySurface{}, s);
+  const double truth = CalcMixedFriction(Truth(), AsperitySurface{}, s, 100);
   EXPECT_NEAR(a["sommerfeld_um"].get<double>(), s, 1e-12);
   EXPECT_NEAR(a["mu"].get<double>(), truth, 3e-3) << q.body;
   EXPECT_GT(a["sigma"].get<double>(), 0.0);

@@ -33,14 +33,18 @@ struct MaterialIdentificationOptions {
 struct MaterialIdentification {
   StochasticFit fit;
   ConditionalSlipLikelihood conditional;
-  SpanCoverage coverage;
+  SpanCoverage coverage;  ///< against options.reference (the plan)
+  /// Paper 000 III-C-2: the hull of all slipping samples and each stroke's
+  /// coverage of it (CalcMaterialHullCoverage; the 50 % rule applies here).
+  MaterialHullCoverage hull;
 };
 
 /// Labels `data` where it has no slip/stroke labels (EnsureLabels with
 /// options.fit.labelling), then fits eq. (1), the Fn-only model and the
 /// sigmoid likelihood (FitStochasticModel), the conditional likelihood on
 /// every finite sample (FitConditionalSlipLikelihood) and the coverage of
-/// the slipping samples (CalcSpanCoverage). Throws std::invalid_argument
+/// the slipping samples (CalcSpanCoverage against options.reference, and
+/// CalcMaterialHullCoverage per stroke). Throws std::invalid_argument
 /// for invalid options (threads < 1 included).
 MaterialIdentification IdentifyMaterial(
     StrokeData data, const MaterialIdentificationOptions& options = {});

@@ -6,7 +6,8 @@
 ///
 /// Models (mu: friction coefficient, v: sliding speed [mm/s] >= 0):
 ///
-/// - kMixed (paper 002, eq. 1): mu = f(S), S = eta(T) v / p;
+/// - kMixed (paper 002, eq. 1): mu = f(S, W), S = eta(T) v / p, alpha the
+///   solid LOAD fraction at load W (joint_friction.h, eqs. 6-7);
 ///   theta = [f_s, f_l, d_ref_um, n]. Needs load and viscosity per sample.
 /// - kStribeckViscous (generalised Stribeck with viscous term, Bo &
 ///   Pavelescu / Armstrong): mu = f_c + (f_st - f_c) exp(-(v/v_s)^delta)
@@ -129,8 +130,9 @@ std::vector<JointModelScore> CompareJointModels(
     int k = 5,
     const std::vector<int>& fold = {});
 
-/// Simulated joint data: mu = f(S) + (contact scatter, SampleContactFriction)
-/// + N(0, noise^2), at the given states. eta from temp_c via the lubricant.
+/// Simulated joint data: mu = f(S, W) + (contact scatter of N Hertz summits,
+/// SampleContactFriction) + N(0, noise^2), at the given states. eta from
+/// temp_c via the lubricant.
 JointData SimulateJointData(const MixedFrictionTheta& theta,
                             const JointConfig& config,
                             const std::vector<double>& v_mm_s,

@@ -88,6 +88,38 @@ HullSpanCoverage CalcHullSpanCoverage(
     const std::vector<double>& material_fn_n,
     const std::vector<double>& material_v_mm_s);
 
+/// One stroke's coverage within MaterialHullCoverage.
+struct StrokeHullCoverage {
+  int stroke = 0;             ///< stroke id
+  HullSpanCoverage coverage;  ///< its hull against the material's hull
+};
+
+/// Hull-relative span coverage of every stroke of a material at once
+/// (paper 000, III-C-2): the hull of all of the material's slipping
+/// samples and each stroke's coverage of it, as the console route shows it.
+struct MaterialHullCoverage {
+  /// Hull of all finite points, counter-clockwise (CalcConvexHull).
+  std::vector<std::pair<double, double>> hull;
+  double hull_area = 0.0;  ///< [N mm/s]
+  int samples = 0;         ///< finite points
+  /// One entry per stroke id in ascending order (the newest `max_strokes`
+  /// ids when there are more), each equal to CalcHullSpanCoverage(stroke's
+  /// points, all points) except that material_samples counts every point
+  /// once (the stroke's points are part of the material's).
+  std::vector<StrokeHullCoverage> strokes;
+};
+
+/// Hull coverage for identification (IdentifyMaterial fills
+/// MaterialIdentification::hull with it): pure, no I/O. `stroke` may be
+/// empty (then `strokes` is empty); otherwise it pairs with fn_n. Each
+/// stroke costs O(n_s log n_s) against the material hull computed once.
+/// @throws std::invalid_argument when paired arrays differ in length or
+/// max_strokes < 0.
+MaterialHullCoverage CalcMaterialHullCoverage(const std::vector<double>& fn_n,
+                                              const std::vector<double>& v_mm_s,
+                                              const std::vector<int>& stroke,
+                                              int max_strokes = 1000);
+
 /// Convex hull of the points (Andrew's monotone chain), counter-clockwise
 /// from the point with the smallest first coordinate, without collinear
 /// points; fewer than three points when they are all collinear.
