@@ -69,6 +69,7 @@ void FrictionAdapter::TagGeom(const mjModel* m,
 void FrictionAdapter::Reset(std::uint64_t seed) {
   rng_.seed(seed);
   episodes_.clear();
+  if (joint_friction_) joint_friction_->Reset();
 }
 
 double FrictionAdapter::CalcMu(const StochasticFrictionModel& model,
@@ -179,8 +180,20 @@ void FrictionAdapter::Step(const mjModel* m, mjData* d) {
   mj_makeConstraint(m, d);
   mj_transmission(m, d);
   mj_projectConstraint(m, d);
-  // The rest of mj_forward, then mj_step's Euler integration.
-  mj_forwardSkip(m, d, mjSTAGE_POS, 0);
+  // The rest of mj_forward (mj_forwardSkip(m, d, mjSTAGE_POS, 0) written
+  // out, with the joint friction between actuation and acceleration), then
+  // mj_step's Euler integration.
+  mj_sensorPos(m, d);
+  if (m->opt.enableflags & mjENBL_ENERGY) mj_energyPos(m, d);
+  mj_fwdVelocity(m, d);
+  mj_sensorVel(m, d);
+  if (m->opt.enableflags & mjENBL_ENERGY) mj_energyVel(m, d);
+  if (mjcb_control) mjcb_control(m, d);
+  mj_fwdActuation(m, d);
+  if (joint_friction_) joint_friction_->Apply(m, d);
+  mj_fwdAcceleration(m, d);
+  mj_fwdConstraint(m, d);
+  mj_sensorAcc(m, d);
   mj_checkAcc(m, d);
   mj_Euler(m, d);
 }

@@ -24,6 +24,10 @@
 ///    reset friction); Step() throws otherwise;
 ///  - no LuGre state per contact (not implemented).
 ///
+/// Joint friction (issue 21 item 2): SetJointFriction attaches identified
+/// actuator friction laws (joint_friction.h) that Step applies as joint
+/// torques after the actuation stage.
+///
 /// Usage:
 /// @code
 ///   frictiond::mujoco::FrictionAdapter adapter(m, {.seed = 7});
@@ -41,6 +45,7 @@
 #include <mujoco/mujoco.h>
 
 #include "frictiond/estimators/stochastic_model.h"
+#include "frictiond/mujoco/joint_friction.h"
 #include "frictiond/proto/model_json.h"
 
 namespace frictiond::mujoco {
@@ -97,8 +102,16 @@ class FrictionAdapter {
   /// @throws std::invalid_argument when m->opt.integrator is not Euler.
   void Step(const mjModel* m, mjData* d);
 
-  /// Forgets all contact episodes and reseeds (start of a new episode).
+  /// Forgets all contact episodes and reseeds (start of a new episode);
+  /// resets the attached joint friction's states too.
   void Reset(std::uint64_t seed);
+
+  /// Attaches joint friction (joint_friction.h) that Step applies after
+  /// the actuation stage (nullptr detaches). Not owned: it must outlive
+  /// the adapter's Step calls.
+  void SetJointFriction(JointFriction* joint_friction) {
+    joint_friction_ = joint_friction;
+  }
 
   /// mu of a tagged model at (Fn, v) with a given eps, clamped.
   double CalcMu(const StochasticFrictionModel& model,
@@ -119,6 +132,7 @@ class FrictionAdapter {
   std::mt19937_64 rng_;
   std::map<int, StochasticFrictionModel> tagged_;
   std::map<std::pair<int, int>, ContactEpisode> episodes_;
+  JointFriction* joint_friction_ = nullptr;
 };
 
 }  // namespace frictiond::mujoco
