@@ -80,6 +80,16 @@ double FrictionAdapter::CalcMu(const StochasticFrictionModel& model,
   if (options_.mode == FrictionMode::kCoulomb) {
     mu = model.mu_coulomb;
   } else {
+    if (options_.clamp_to_fitted_inputs) {
+      auto clamp_input = [&model](const char* name, double x) {
+        const auto it = model.inputs.find(name);
+        if (it == model.inputs.end() || !(it->second.min <= it->second.max))
+          return x;
+        return std::clamp(x, it->second.min, it->second.max);
+      };
+      fn_n = clamp_input("fn_n", fn_n);
+      v_mm_s = clamp_input("v_mm_s", v_mm_s);
+    }
     // Paper 000 eq. (1): mu = b0 + b1 v + b2 Fn + eps.
     mu = Coefficient(model.mu, "intercept") +
          Coefficient(model.mu, "v_mm_s") * v_mm_s +

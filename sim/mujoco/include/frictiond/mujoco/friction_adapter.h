@@ -67,6 +67,11 @@ struct AdapterOptions {
   /// touch draws a new eps); shorter gaps (chatter of a soft contact at the
   /// onset of slip) keep it [s].
   double episode_gap_s = 0.05;
+  /// Evaluate eq. (1) with Fn and v_slip clamped to the ranges the model
+  /// was fitted on (StochasticFrictionModel::inputs, when stored) instead
+  /// of extrapolating: a stick phase (v = 0) then gets the mu of the
+  /// slowest fitted slip, not a line continued to zero speed.
+  bool clamp_to_fitted_inputs = false;
 };
 
 /// State of one contact episode (a geom pair in contact).
