@@ -4,6 +4,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "frictiond/estimators/grip_force.h"
+
 namespace frictiond::mujoco {
 namespace {
 
@@ -29,6 +31,17 @@ void PointVelocity(const mjModel* m,
   out[0] = v[3] + v[1] * r[2] - v[2] * r[1];
   out[1] = v[4] + v[2] * r[0] - v[0] * r[2];
   out[2] = v[5] + v[0] * r[1] - v[1] * r[0];
+}
+
+// eps_t = F^-1(Phi(z_t)), z_t = sqrt(f) A + sqrt(1 - f) w_t (eps_time.h).
+double EpsFromLatent(const StochasticFrictionModel& model,
+                     double offset_z,
+                     double ar_z) {
+  const double f = std::clamp(model.eps_time.offset_fraction, 0.0, 1.0);
+  const double z = std::sqrt(f) * offset_z + std::sqrt(1.0 - f) * ar_z;
+  const double p =
+      std::clamp(0.5 * std::erfc(-z / std::sqrt(2.0)), 1e-12, 1.0 - 1e-12);
+  return CalcEpsQuantileExtended(model.mu, p, model.eps_time);
 }
 
 }  // namespace
@@ -142,18 +155,38 @@ void FrictionAdapter::SetContactFriction(const mjModel* /*m*/, mjData* d) {
     if (n == next.end()) {
       auto old = episodes_.find(key);
       ContactEpisode ep;
+      const StochasticFrictionModel& model = t->second;
+      const EpsTimeModel& et = model.eps_time;
+      const bool ar1 = options_.eps_time == EpsTime::kIdentified && et.valid &&
+                       et.dt_s > 0 && et.offset_fraction < 1.0;
+      std::normal_distribution<double> normal(0.0, 1.0);
       if (old != episodes_.end() &&
           d->time - old->second.last_s <= options_.episode_gap_s) {
-        ep = old->second;  // the episode goes on: keep eps
+        ep = old->second;  // the episode goes on: keep its offset
+        if (ar1 && d->time >= ep.next_ar_s) {
+          // Advance w by the k elapsed dt_s steps of the AR(1) at once
+          // (eps_time.h): w <- phi^k w + sqrt(1 - phi^2k) e, exact.
+          const double k = std::floor((d->time - ep.next_ar_s) / et.dt_s) + 1.0;
+          const double phi_k = std::pow(std::clamp(et.phi, 0.0, 0.999), k);
+          ep.ar_z =
+              phi_k * ep.ar_z + std::sqrt(1.0 - phi_k * phi_k) * normal(rng_);
+          ep.next_ar_s += k * et.dt_s;
+          ep.eps = EpsFromLatent(model, ep.offset_z, ep.ar_z);
+        }
+      } else if (ar1) {
+        // A new episode: offset A and a stationary w_0.
+        ep.offset_z = normal(rng_);
+        ep.ar_z = normal(rng_);
+        ep.next_ar_s = d->time + et.dt_s;
+        ep.eps = EpsFromLatent(model, ep.offset_z, ep.ar_z);
       } else {
-        // A new episode: eps from the empirical distribution by inverse
-        // transform of a uniform draw (CalcEpsQuantile: stored quantiles,
-        // their end values beyond the outermost levels).
+        // A new episode, eps held for it: inverse transform of a uniform
+        // draw through the stored quantiles (CalcEpsQuantile).
         std::uniform_real_distribution<double> u(0.0, 1.0);
-        ep.eps = CalcEpsQuantile(t->second.mu, u(rng_));
+        ep.eps = CalcEpsQuantile(model.mu, u(rng_));
       }
       ep.last_s = d->time;
-      ep.mu = CalcMu(t->second, ep.fn_n, ep.v_mm_s, ep.eps);
+      ep.mu = CalcMu(model, ep.fn_n, ep.v_mm_s, ep.eps);
       n = next.emplace(key, ep).first;
     }
     c.friction[0] = n->second.mu;

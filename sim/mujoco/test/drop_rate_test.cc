@@ -233,7 +233,8 @@ TEST(DropRate, StochasticTruthDropsAtTheRequestedRisk) {
     int drops = 0, drops_service = 0, drops_coulomb = 0, drops_default = 0;
     for (int e = 0; e < kEpisodes; ++e) {
       drops += s.Episode(&stochastic, 1000 + e, g.fn_n);
-      drops_service += s.Episode(&stochastic, 5000 + e, fn_service);
+      if (e < kEpisodes / 2)
+        drops_service += s.Episode(&stochastic, 5000 + e, fn_service);
     }
     for (int e = 0; e < 50; ++e) {
       drops_coulomb += s.Episode(&coulomb, e, g.fn_n);
@@ -256,12 +257,12 @@ TEST(DropRate, StochasticTruthDropsAtTheRequestedRisk) {
         fn_service,
         CalcPinchSlipProbability(a, b, fn_service, s.Load()),
         drops_service,
-        kEpisodes,
+        kEpisodes / 2,
         drops_coulomb,
         drops_default);
     EXPECT_GE(drops, lo) << "risk " << risk;
     EXPECT_LE(drops, hi) << "risk " << risk;
-    EXPECT_LT(drops_service, drops) << "the one-contact answer is safer";
+    EXPECT_LT(2 * drops_service, drops) << "the one-contact answer is safer";
     EXPECT_TRUE(drops_coulomb == 0 || drops_coulomb == 50);
   }
 }

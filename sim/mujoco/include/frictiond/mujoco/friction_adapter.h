@@ -6,9 +6,20 @@
 ///   mu = b0 + b1 v_slip + b2 Fn + eps                          (eq. 1)
 /// with Fn [N] and the slip speed v_slip [mm/s] of that geom pair taken from
 /// the previous step's contact forces (mj_contactForce) and constraint
-/// velocities, and eps drawn once per contact episode (the steps during which
-/// the pair stays in contact) from the material's empirical eps distribution
-/// (the stored quantiles), seeded so runs reproduce.
+/// velocities, and eps from the material's empirical eps distribution with
+/// its identified time correlation (eps_time.h), per contact episode (the
+/// steps during which the pair stays in contact), seeded so runs reproduce:
+///
+///   eps_t = F^-1(Phi(z_t)),  z_t = sqrt(f) A + sqrt(1 - f) w_t,
+///   A ~ N(0, 1) once per episode,  w_t = phi w_{t-1} + sqrt(1 - phi^2) e_t
+///
+/// with F^-1 = CalcEpsQuantileExtended (stored quantiles, fitted tail),
+/// f = eps_time.offset_fraction, phi = eps_time.phi per eps_time.dt_s; w
+/// starts stationary (w_0 ~ N(0, 1)), is advanced once per elapsed dt_s of
+/// simulation time and held in between (the data's sampling: the hold risk
+/// of CalcGripForce counts 1 + hold_s / dt_s looks). A model without a
+/// valid eps_time, or EpsTime::kPerEpisode, holds one draw per episode
+/// (f = 1).
 ///
 /// Mechanism: Step() replaces mj_step for the Euler integrator. It runs the
 /// position stage with public calls in mj_fwdPosition's order, but sets
@@ -16,9 +27,8 @@
 /// mj_forwardSkip(mjSTAGE_POS) and mj_Euler.
 ///
 /// Departures from the paper / limits (docs/mujoco.md):
-///  - eps is held constant per contact episode: the model's identified
-///    time correlation (eps_time: AR(1) phi, offset fraction) is ignored,
-///    i.e. simulated as offset fraction 1;
+///  - w is sampled-and-held at the data's dt_s, not interpolated; a
+///    simulation step longer than dt_s advances it by several steps at once;
 ///  - Fn and v_slip lag one step (they come from the previous step);
 ///  - only the Euler integrator (RK4 would call mj_forward internally and
 ///    reset friction); Step() throws otherwise;
@@ -52,16 +62,23 @@ namespace frictiond::mujoco {
 
 /// How a tagged contact's mu is computed.
 enum class FrictionMode {
-  kStochastic,  ///< b0 + b1 v + b2 Fn + eps, eps per contact episode
+  kStochastic,  ///< b0 + b1 v + b2 Fn + eps (eps_time per episode)
   kMean,        ///< b0 + b1 v + b2 Fn (no eps)
   kCoulomb,     ///< the model's Coulomb constant mu_coulomb
+};
+
+/// Time structure of eps within a contact episode.
+enum class EpsTime {
+  kIdentified,  ///< the model's eps_time (AR(1) + offset) when valid
+  kPerEpisode,  ///< one draw per episode (offset fraction 1)
 };
 
 /// Options of the adapter.
 struct AdapterOptions {
   FrictionMode mode = FrictionMode::kStochastic;
-  std::uint64_t seed = 1;  ///< seed of the eps draws
-  double mu_min = 1e-3;    ///< mu is clamped to [mu_min, mu_max]
+  std::uint64_t seed = 1;                   ///< seed of the eps draws
+  EpsTime eps_time = EpsTime::kIdentified;  ///< eps within an episode
+  double mu_min = 1e-3;  ///< mu is clamped to [mu_min, mu_max]
   double mu_max = 5.0;
   /// A pair out of contact for longer than this ends its episode (the next
   /// touch draws a new eps); shorter gaps (chatter of a soft contact at the
@@ -76,12 +93,15 @@ struct AdapterOptions {
 
 /// State of one contact episode (a geom pair in contact).
 struct ContactEpisode {
-  double eps = 0.0;     ///< eps drawn when the episode began
-  double fn_n = 0.0;    ///< normal force of the pair at the last step [N]
-  double v_mm_s = 0.0;  ///< slip speed of the pair at the last step [mm/s]
-  double mu = 0.0;      ///< mu given at the last step
-  bool seen = false;    ///< in contact at the last step
-  double last_s = 0.0;  ///< simulation time of the last step in contact
+  double eps = 0.0;        ///< eps at the last step
+  double offset_z = 0.0;   ///< A: the episode's latent offset (N(0, 1))
+  double ar_z = 0.0;       ///< w: the AR(1) latent part (N(0, 1))
+  double next_ar_s = 0.0;  ///< simulation time of w's next advance
+  double fn_n = 0.0;       ///< normal force of the pair at the last step [N]
+  double v_mm_s = 0.0;     ///< slip speed of the pair at the last step [mm/s]
+  double mu = 0.0;         ///< mu given at the last step
+  bool seen = false;       ///< in contact at the last step
+  double last_s = 0.0;     ///< simulation time of the last step in contact
 };
 
 /// The adapter. Holds no pointer to the model or data between calls.
