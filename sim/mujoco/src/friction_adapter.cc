@@ -33,15 +33,31 @@ void PointVelocity(const mjModel* m,
   out[2] = v[5] + v[0] * r[1] - v[1] * r[0];
 }
 
-// eps_t = F^-1(Phi(z_t)), z_t = sqrt(f) A + sqrt(1 - f) w_t (eps_time.h).
+// eps = F^-1(Phi(z)) (eps_time.h) exactly, for the table below.
+double EpsAtLatent(const StochasticFrictionModel& model, double z) {
+  const double p =
+      std::clamp(0.5 * std::erfc(-z / std::sqrt(2.0)), 1e-15, 1.0 - 1e-15);
+  return CalcEpsQuantileExtended(model.mu, p, model.eps_time);
+}
+
+constexpr double kLatentMax = 8.0;  // table over z in [-8, 8]
+constexpr int kLatentPoints = 4097;
+
+// z_t = sqrt(f) A + sqrt(1 - f) w_t, then eps = F^-1(Phi(z_t)) by linear
+// interpolation in the table (grid 0.004 in z; F^-1(Phi(.)) is smooth).
 double EpsFromLatent(const StochasticFrictionModel& model,
+                     const std::vector<double>& table,
                      double offset_z,
                      double ar_z) {
   const double f = std::clamp(model.eps_time.offset_fraction, 0.0, 1.0);
   const double z = std::sqrt(f) * offset_z + std::sqrt(1.0 - f) * ar_z;
-  const double p =
-      std::clamp(0.5 * std::erfc(-z / std::sqrt(2.0)), 1e-12, 1.0 - 1e-12);
-  return CalcEpsQuantileExtended(model.mu, p, model.eps_time);
+  if (table.size() != static_cast<std::size_t>(kLatentPoints))
+    return EpsAtLatent(model, z);
+  const double x = (std::clamp(z, -kLatentMax, kLatentMax) + kLatentMax) /
+                   (2.0 * kLatentMax) * (kLatentPoints - 1);
+  const int k = std::min(static_cast<int>(x), kLatentPoints - 2);
+  const double w = x - k;
+  return table[k] + w * (table[k + 1] - table[k]);
 }
 
 }  // namespace
@@ -59,6 +75,14 @@ void FrictionAdapter::TagGeom(int geom, const StochasticFrictionModel& model) {
   if (model.mu.FindTerm("intercept") < 0)
     throw std::invalid_argument("model.mu: no intercept term");
   tagged_[geom] = model;
+  std::vector<double>& table = latent_table_[geom];
+  table.clear();
+  if (model.eps_time.valid) {
+    table.resize(kLatentPoints);
+    for (int k = 0; k < kLatentPoints; ++k)
+      table[k] = EpsAtLatent(
+          model, -kLatentMax + 2.0 * kLatentMax * k / (kLatentPoints - 1));
+  }
 }
 
 void FrictionAdapter::TagGeom(const mjModel* m,
@@ -81,6 +105,7 @@ void FrictionAdapter::TagGeom(const mjModel* m,
 
 void FrictionAdapter::Reset(std::uint64_t seed) {
   rng_.seed(seed);
+  normal_.reset();
   episodes_.clear();
   if (joint_friction_) joint_friction_->Reset();
 }
@@ -159,7 +184,6 @@ void FrictionAdapter::SetContactFriction(const mjModel* /*m*/, mjData* d) {
       const EpsTimeModel& et = model.eps_time;
       const bool ar1 = options_.eps_time == EpsTime::kIdentified && et.valid &&
                        et.dt_s > 0 && et.offset_fraction < 1.0;
-      std::normal_distribution<double> normal(0.0, 1.0);
       if (old != episodes_.end() &&
           d->time - old->second.last_s <= options_.episode_gap_s) {
         ep = old->second;  // the episode goes on: keep its offset
@@ -167,18 +191,21 @@ void FrictionAdapter::SetContactFriction(const mjModel* /*m*/, mjData* d) {
           // Advance w by the k elapsed dt_s steps of the AR(1) at once
           // (eps_time.h): w <- phi^k w + sqrt(1 - phi^2k) e, exact.
           const double k = std::floor((d->time - ep.next_ar_s) / et.dt_s) + 1.0;
-          const double phi_k = std::pow(std::clamp(et.phi, 0.0, 0.999), k);
+          const double phi = std::clamp(et.phi, 0.0, 0.999);
+          const double phi_k = k == 1.0 ? phi : std::pow(phi, k);
           ep.ar_z =
-              phi_k * ep.ar_z + std::sqrt(1.0 - phi_k * phi_k) * normal(rng_);
+              phi_k * ep.ar_z + std::sqrt(1.0 - phi_k * phi_k) * normal_(rng_);
           ep.next_ar_s += k * et.dt_s;
-          ep.eps = EpsFromLatent(model, ep.offset_z, ep.ar_z);
+          ep.eps = EpsFromLatent(
+              model, latent_table_[t->first], ep.offset_z, ep.ar_z);
         }
       } else if (ar1) {
         // A new episode: offset A and a stationary w_0.
-        ep.offset_z = normal(rng_);
-        ep.ar_z = normal(rng_);
+        ep.offset_z = normal_(rng_);
+        ep.ar_z = normal_(rng_);
         ep.next_ar_s = d->time + et.dt_s;
-        ep.eps = EpsFromLatent(model, ep.offset_z, ep.ar_z);
+        ep.eps =
+            EpsFromLatent(model, latent_table_[t->first], ep.offset_z, ep.ar_z);
       } else {
         // A new episode, eps held for it: inverse transform of a uniform
         // draw through the stored quantiles (CalcEpsQuantile).

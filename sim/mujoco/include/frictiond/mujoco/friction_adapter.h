@@ -13,7 +13,8 @@
 ///   eps_t = F^-1(Phi(z_t)),  z_t = sqrt(f) A + sqrt(1 - f) w_t,
 ///   A ~ N(0, 1) once per episode,  w_t = phi w_{t-1} + sqrt(1 - phi^2) e_t
 ///
-/// with F^-1 = CalcEpsQuantileExtended (stored quantiles, fitted tail),
+/// with F^-1 = CalcEpsQuantileExtended (stored quantiles, fitted tail;
+/// tabulated over z in [-8, 8] at 0.004 when the geom is tagged),
 /// f = eps_time.offset_fraction, phi = eps_time.phi per eps_time.dt_s; w
 /// starts stationary (w_0 ~ N(0, 1)), is advanced once per elapsed dt_s of
 /// simulation time and held in between (the data's sampling: the hold risk
@@ -155,7 +156,10 @@ class FrictionAdapter {
 
   AdapterOptions options_;
   std::mt19937_64 rng_;
+  std::normal_distribution<double> normal_{0.0, 1.0};
   std::map<int, StochasticFrictionModel> tagged_;
+  /// Per tagged geom: eps = F^-1(Phi(z)) on a z grid (eps_time models).
+  std::map<int, std::vector<double>> latent_table_;
   std::map<std::pair<int, int>, ContactEpisode> episodes_;
   JointFriction* joint_friction_ = nullptr;
 };
