@@ -25,7 +25,8 @@
 /// Mechanism: Step() replaces mj_step for the Euler integrator. It runs the
 /// position stage with public calls in mj_fwdPosition's order, but sets
 /// d->contact[i].friction between mj_collision and mj_makeConstraint, then
-/// mj_forwardSkip(mjSTAGE_POS) and mj_Euler.
+/// the rest of mj_forward written out (the attached joint friction between
+/// mj_fwdActuation and mj_fwdAcceleration) and mj_Euler.
 ///
 /// Departures from the paper / limits (docs/mujoco.md):
 ///  - w is sampled-and-held at the data's dt_s, not interpolated; a
@@ -33,7 +34,10 @@
 ///  - Fn and v_slip lag one step (they come from the previous step);
 ///  - only the Euler integrator (RK4 would call mj_forward internally and
 ///    reset friction); Step() throws otherwise;
-///  - no LuGre state per contact (not implemented).
+///  - no LuGre state per contact (not implemented);
+///  - MuJoCo 2.2.2's elliptic noslip lets a contact creep when one of its
+///    friction directions has an empty Jacobian: give contacting bodies
+///    freedom in both tangential directions.
 ///
 /// Joint friction (issue 21 item 2): SetJointFriction attaches identified
 /// actuator friction laws (joint_friction.h) that Step applies as joint
