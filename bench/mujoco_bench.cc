@@ -61,6 +61,12 @@ StochasticFrictionModel Model() {
   t.mu.sigma_eps = 0.1;
   for (double p : EpsQuantileLevels())
     t.mu.eps_quantiles.push_back(CalcEpsQuantile(t.mu, p));
+  // eps with an identified time structure sampled every step (the adapter's
+  // costliest eps path: an AR(1) advance and a quantile per contact-step).
+  t.eps_time.valid = true;
+  t.eps_time.dt_s = 0.002;
+  t.eps_time.phi = 0.9;
+  t.eps_time.offset_fraction = 0.5;
   return t;
 }
 

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "frictiond/estimators/grip_force.h"
+
 namespace frictiond::mujoco {
 namespace {
 
@@ -31,6 +33,33 @@ void PointVelocity(const mjModel* m,
   out[2] = v[5] + v[0] * r[1] - v[1] * r[0];
 }
 
+// eps = F^-1(Phi(z)) (eps_time.h) exactly, for the table below.
+double EpsAtLatent(const StochasticFrictionModel& model, double z) {
+  const double p =
+      std::clamp(0.5 * std::erfc(-z / std::sqrt(2.0)), 1e-15, 1.0 - 1e-15);
+  return CalcEpsQuantileExtended(model.mu, p, model.eps_time);
+}
+
+constexpr double kLatentMax = 8.0;  // table over z in [-8, 8]
+constexpr int kLatentPoints = 4097;
+
+// z_t = sqrt(f) A + sqrt(1 - f) w_t, then eps = F^-1(Phi(z_t)) by linear
+// interpolation in the table (grid 0.004 in z; F^-1(Phi(.)) is smooth).
+double EpsFromLatent(const StochasticFrictionModel& model,
+                     const std::vector<double>& table,
+                     double offset_z,
+                     double ar_z) {
+  const double f = std::clamp(model.eps_time.offset_fraction, 0.0, 1.0);
+  const double z = std::sqrt(f) * offset_z + std::sqrt(1.0 - f) * ar_z;
+  if (table.size() != static_cast<std::size_t>(kLatentPoints))
+    return EpsAtLatent(model, z);
+  const double x = (std::clamp(z, -kLatentMax, kLatentMax) + kLatentMax) /
+                   (2.0 * kLatentMax) * (kLatentPoints - 1);
+  const int k = std::min(static_cast<int>(x), kLatentPoints - 2);
+  const double w = x - k;
+  return table[k] + w * (table[k + 1] - table[k]);
+}
+
 }  // namespace
 
 FrictionAdapter::FrictionAdapter(AdapterOptions options)
@@ -46,6 +75,14 @@ void FrictionAdapter::TagGeom(int geom, const StochasticFrictionModel& model) {
   if (model.mu.FindTerm("intercept") < 0)
     throw std::invalid_argument("model.mu: no intercept term");
   tagged_[geom] = model;
+  std::vector<double>& table = latent_table_[geom];
+  table.clear();
+  if (model.eps_time.valid) {
+    table.resize(kLatentPoints);
+    for (int k = 0; k < kLatentPoints; ++k)
+      table[k] = EpsAtLatent(
+          model, -kLatentMax + 2.0 * kLatentMax * k / (kLatentPoints - 1));
+  }
 }
 
 void FrictionAdapter::TagGeom(const mjModel* m,
@@ -68,7 +105,9 @@ void FrictionAdapter::TagGeom(const mjModel* m,
 
 void FrictionAdapter::Reset(std::uint64_t seed) {
   rng_.seed(seed);
+  normal_.reset();
   episodes_.clear();
+  if (joint_friction_) joint_friction_->Reset();
 }
 
 double FrictionAdapter::CalcMu(const StochasticFrictionModel& model,
@@ -79,6 +118,16 @@ double FrictionAdapter::CalcMu(const StochasticFrictionModel& model,
   if (options_.mode == FrictionMode::kCoulomb) {
     mu = model.mu_coulomb;
   } else {
+    if (options_.clamp_to_fitted_inputs) {
+      auto clamp_input = [&model](const char* name, double x) {
+        const auto it = model.inputs.find(name);
+        if (it == model.inputs.end() || !(it->second.min <= it->second.max))
+          return x;
+        return std::clamp(x, it->second.min, it->second.max);
+      };
+      fn_n = clamp_input("fn_n", fn_n);
+      v_mm_s = clamp_input("v_mm_s", v_mm_s);
+    }
     // Paper 000 eq. (1): mu = b0 + b1 v + b2 Fn + eps.
     mu = Coefficient(model.mu, "intercept") +
          Coefficient(model.mu, "v_mm_s") * v_mm_s +
@@ -131,18 +180,40 @@ void FrictionAdapter::SetContactFriction(const mjModel* /*m*/, mjData* d) {
     if (n == next.end()) {
       auto old = episodes_.find(key);
       ContactEpisode ep;
+      const StochasticFrictionModel& model = t->second;
+      const EpsTimeModel& et = model.eps_time;
+      const bool ar1 = options_.eps_time == EpsTime::kIdentified && et.valid &&
+                       et.dt_s > 0 && et.offset_fraction < 1.0;
       if (old != episodes_.end() &&
           d->time - old->second.last_s <= options_.episode_gap_s) {
-        ep = old->second;  // the episode goes on: keep eps
+        ep = old->second;  // the episode goes on: keep its offset
+        if (ar1 && d->time >= ep.next_ar_s) {
+          // Advance w by the k elapsed dt_s steps of the AR(1) at once
+          // (eps_time.h): w <- phi^k w + sqrt(1 - phi^2k) e, exact.
+          const double k = std::floor((d->time - ep.next_ar_s) / et.dt_s) + 1.0;
+          const double phi = std::clamp(et.phi, 0.0, 0.999);
+          const double phi_k = k == 1.0 ? phi : std::pow(phi, k);
+          ep.ar_z =
+              phi_k * ep.ar_z + std::sqrt(1.0 - phi_k * phi_k) * normal_(rng_);
+          ep.next_ar_s += k * et.dt_s;
+          ep.eps = EpsFromLatent(
+              model, latent_table_[t->first], ep.offset_z, ep.ar_z);
+        }
+      } else if (ar1) {
+        // A new episode: offset A and a stationary w_0.
+        ep.offset_z = normal_(rng_);
+        ep.ar_z = normal_(rng_);
+        ep.next_ar_s = d->time + et.dt_s;
+        ep.eps =
+            EpsFromLatent(model, latent_table_[t->first], ep.offset_z, ep.ar_z);
       } else {
-        // A new episode: eps from the empirical distribution by inverse
-        // transform of a uniform draw (CalcEpsQuantile: stored quantiles,
-        // their end values beyond the outermost levels).
+        // A new episode, eps held for it: inverse transform of a uniform
+        // draw through the stored quantiles (CalcEpsQuantile).
         std::uniform_real_distribution<double> u(0.0, 1.0);
-        ep.eps = CalcEpsQuantile(t->second.mu, u(rng_));
+        ep.eps = CalcEpsQuantile(model.mu, u(rng_));
       }
       ep.last_s = d->time;
-      ep.mu = CalcMu(t->second, ep.fn_n, ep.v_mm_s, ep.eps);
+      ep.mu = CalcMu(model, ep.fn_n, ep.v_mm_s, ep.eps);
       n = next.emplace(key, ep).first;
     }
     c.friction[0] = n->second.mu;
@@ -179,8 +250,20 @@ void FrictionAdapter::Step(const mjModel* m, mjData* d) {
   mj_makeConstraint(m, d);
   mj_transmission(m, d);
   mj_projectConstraint(m, d);
-  // The rest of mj_forward, then mj_step's Euler integration.
-  mj_forwardSkip(m, d, mjSTAGE_POS, 0);
+  // The rest of mj_forward (mj_forwardSkip(m, d, mjSTAGE_POS, 0) written
+  // out, with the joint friction between actuation and acceleration), then
+  // mj_step's Euler integration.
+  mj_sensorPos(m, d);
+  if (m->opt.enableflags & mjENBL_ENERGY) mj_energyPos(m, d);
+  mj_fwdVelocity(m, d);
+  mj_sensorVel(m, d);
+  if (m->opt.enableflags & mjENBL_ENERGY) mj_energyVel(m, d);
+  if (mjcb_control) mjcb_control(m, d);
+  mj_fwdActuation(m, d);
+  if (joint_friction_) joint_friction_->Apply(m, d);
+  mj_fwdAcceleration(m, d);
+  mj_fwdConstraint(m, d);
+  mj_sensorAcc(m, d);
   mj_checkAcc(m, d);
   mj_Euler(m, d);
 }

@@ -1,7 +1,9 @@
-// Validation by drop rates (issue 21, docs/mujoco.md): a soft fingertip
-// pinches a box against gravity; the grip force comes from CalcGripForce for
-// a known stochastic truth; the drop frequency over 1,000 seeded episodes
-// must lie in the 99 % binomial interval of the requested risk.
+// Validation by drop rates (issue 21, docs/mujoco.md): two soft fingertips
+// with different stochastic truths pinch a box against gravity; the grip
+// force comes from the two-contact risk (CalcPinchGripForce); the drop
+// frequency over 1,000 seeded episodes must lie in the 99 % binomial
+// interval of the requested risk.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -14,31 +16,45 @@
 
 #include "frictiond/estimators/grip_force.h"
 #include "frictiond/mujoco/friction_adapter.h"
+#include "frictiond/mujoco/pinch_grip.h"
 
 namespace frictiond::mujoco {
 namespace {
 
-// One friction contact carries the whole load: the fingertip (x slide,
-// motor = grip force) presses the box, whose only joint is a vertical slide
-// (its x reaction comes from the joint, so the opposing "finger" is
-// frictionless). Then P(drop) = P(mu < L/Fn), the risk CalcGripForce solves.
-// Elliptic cone, impratio and noslip iterations remove soft-contact creep.
+// Two soft fingertips (x slides, motors = grip force Fn each) pinch a box
+// on a vertical and a horizontal (y) slide (its x reaction comes from the
+// joints). The y slide is needed: with no y freedom the contacts' first
+// friction rows are empty and MuJoCo 2.2.2's elliptic noslip leaves the
+// box creeping at 0.7 mm/s with two contacts (none with one). Fingertip a and
+// fingertip b have different stochastic models; each contact draws its own eps
+// per episode. The box drops when Fn (mu_a + mu_b) < L, the risk
+// CalcPinchGripForce solves (pinch_grip.h). Elliptic cone, impratio and noslip
+// iterations remove soft-contact creep.
 constexpr const char* kScene = R"(
 <mujoco model="pinch">
   <option timestep="0.002" integrator="Euler" cone="elliptic" impratio="10"
           noslip_iterations="30" gravity="0 0 -9.81"/>
   <worldbody>
-    <body name="finger" pos="-0.03 0 0">
-      <joint name="fx" type="slide" axis="1 0 0" damping="2"/>
-      <geom name="tip" type="sphere" size="0.01" mass="0.05"
+    <body name="finger_a" pos="-0.03 0 0">
+      <joint name="ax" type="slide" axis="1 0 0" damping="2"/>
+      <geom name="tip_a" type="sphere" size="0.01" mass="0.05"
+            solref="0.01 1" friction="1 0.005 0.0001"/>
+    </body>
+    <body name="finger_b" pos="0.03 0 0">
+      <joint name="bx" type="slide" axis="-1 0 0" damping="2"/>
+      <geom name="tip_b" type="sphere" size="0.01" mass="0.05"
             solref="0.01 1" friction="1 0.005 0.0001"/>
     </body>
     <body name="box" pos="0 0 0">
       <joint name="bz" type="slide" axis="0 0 1"/>
-      <geom name="box" type="box" size="0.02 0.02 0.02" mass="0.2"/>
+      <joint name="by" type="slide" axis="0 1 0"/>
+      <geom name="box" type="box" size="0.02 0.02 0.02" mass="0.4"/>
     </body>
   </worldbody>
-  <actuator><motor name="press" joint="fx" gear="1"/></actuator>
+  <actuator>
+    <motor name="press_a" joint="ax" gear="1"/>
+    <motor name="press_b" joint="bx" gear="1"/>
+  </actuator>
 </mujoco>)";
 
 constexpr double kSettleS = 0.2;  // gravity off, grip force established
@@ -46,9 +62,20 @@ constexpr double kHoldS = 0.5;    // hold time under load
 constexpr double kDropM = 0.005;  // box lower than this: dropped
 constexpr int kEpisodes = 1000;
 
-// The stochastic truth: mu = 0.8 - 0.002 v - 0.01 Fn + eps, eps ~ N(0, 0.1)
+// eps time model (issue 19) of what the adapter realises: all of eps's
+// variance is constant per contact episode (offset fraction 1), so the
+// risk of a hold equals the risk of one instant.
+void PerEpisodeEps(StochasticFrictionModel* t) {
+  t->eps_time.valid = true;
+  t->eps_time.dt_s = 0.002;
+  t->eps_time.phi = 0.0;
+  t->eps_time.offset_fraction = 1.0;
+  t->eps_time.min_instant_risk = 0.001;
+}
+
+// Fingertip a's truth: mu = 0.8 - 0.002 v - 0.01 Fn + eps, eps ~ N(0, 0.1)
 // stored as quantiles (the empirical form a fitted model has).
-StochasticFrictionModel Truth() {
+StochasticFrictionModel TruthA() {
   StochasticFrictionModel t;
   for (RegressionModel* r : {&t.mu, &t.mu_fn_only}) {
     r->terms = {
@@ -62,14 +89,28 @@ StochasticFrictionModel Truth() {
   t.mu_fn_only.terms = {Term::Intercept(), Term::Linear("fn_n")};
   t.mu_fn_only.beta = Eigen::Vector2d(0.8, -0.01);
   t.mu_coulomb = 0.77;
-  // eps time model (issue 19) of what the adapter realises: all of eps's
-  // variance is constant per contact episode (offset fraction 1), so the
-  // risk of a hold equals the risk of one instant.
-  t.eps_time.valid = true;
-  t.eps_time.dt_s = 0.002;
-  t.eps_time.phi = 0.0;
-  t.eps_time.offset_fraction = 1.0;
-  t.eps_time.min_instant_risk = 0.001;
+  PerEpisodeEps(&t);
+  return t;
+}
+
+// Fingertip b's truth, a different rubber: mu = 0.6 - 0.003 v - 0.005 Fn +
+// eps with a skewed eps (long lower tail, not normal): eps = 0.07 (1 - E),
+// E ~ Exp(1), quantile 0.07 (1 + ln p).
+StochasticFrictionModel TruthB() {
+  StochasticFrictionModel t;
+  for (RegressionModel* r : {&t.mu, &t.mu_fn_only}) {
+    r->terms = {
+        Term::Intercept(), Term::Linear("v_mm_s"), Term::Linear("fn_n")};
+    r->beta = Eigen::Vector3d(0.6, -0.003, -0.005);
+    r->sigma_eps = 0.07;
+    r->samples = 100000;
+    for (double p : EpsQuantileLevels())
+      r->eps_quantiles.push_back(0.07 * (1.0 + std::log(p)));
+  }
+  t.mu_fn_only.terms = {Term::Intercept(), Term::Linear("fn_n")};
+  t.mu_fn_only.beta = Eigen::Vector2d(0.6, -0.005);
+  t.mu_coulomb = 0.58;
+  PerEpisodeEps(&t);
   return t;
 }
 
@@ -84,6 +125,7 @@ struct Scene {
     if (!m) ADD_FAILURE() << err;
     d = mj_makeData(m);
     box_body = mj_name2id(m, mjOBJ_BODY, "box");
+    box_z = m->jnt_qposadr[mj_name2id(m, mjOBJ_JOINT, "bz")];
   }
   ~Scene() {
     mj_deleteData(d);
@@ -91,12 +133,19 @@ struct Scene {
   }
   double Load() const { return m->body_mass[box_body] * 9.81; }
 
-  // One episode; adapter == nullptr: plain mj_step (MuJoCo's friction).
-  // Returns true when the box dropped.
+  // Tags both fingertips with their truths.
+  void Tag(FrictionAdapter* a) const {
+    a->TagGeom(m, "tip_a", TruthA());
+    a->TagGeom(m, "tip_b", TruthB());
+  }
+
+  // One episode, both fingers at fn_n; adapter == nullptr: plain mj_step
+  // (MuJoCo's friction). Returns true when the box dropped.
   bool Episode(FrictionAdapter* adapter, std::uint64_t seed, double fn_n) {
     mj_resetData(m, d);
     if (adapter) adapter->Reset(seed);
     d->ctrl[0] = fn_n;
+    d->ctrl[1] = fn_n;
     const int settle = static_cast<int>(kSettleS / m->opt.timestep);
     const int hold = static_cast<int>(kHoldS / m->opt.timestep);
     for (int i = 0; i < settle + hold; ++i) {
@@ -105,7 +154,7 @@ struct Scene {
         adapter->Step(m, d);
       else
         mj_step(m, d);
-      if (d->qpos[1] < -kDropM) return true;
+      if (d->qpos[box_z] < -kDropM) return true;
     }
     return false;
   }
@@ -113,6 +162,7 @@ struct Scene {
   mjModel* m = nullptr;
   mjData* d = nullptr;
   int box_body = -1;
+  int box_z = -1;
 };
 
 // Smallest k with P(X <= k) >= p for X ~ Binomial(n, r).
@@ -132,41 +182,60 @@ TEST(DropRate, ConstantMuHoldsBelowItsLimitWithoutCreep) {
   AdapterOptions o;
   o.mode = FrictionMode::kCoulomb;
   FrictionAdapter adapter(o);
-  const StochasticFrictionModel truth = Truth();
-  adapter.TagGeom(s.m, "tip", truth);
-  // Load at 90 % of the Coulomb limit, held for 3 s.
-  const double fn = s.Load() / (0.9 * truth.mu_coulomb);
+  s.Tag(&adapter);
+  // Load at 90 % of the two contacts' Coulomb limit, held for 3 s.
+  const double fn =
+      s.Load() / (0.9 * (TruthA().mu_coulomb + TruthB().mu_coulomb));
   s.d->ctrl[0] = fn;
+  s.d->ctrl[1] = fn;
   const int steps = static_cast<int>(3.2 / s.m->opt.timestep);
   for (int i = 0; i < steps; ++i) {
     s.m->opt.gravity[2] = i < 100 ? 0.0 : -9.81;
     adapter.Step(s.m, s.d);
   }
-  EXPECT_GT(s.d->qpos[1], -0.0005) << "creep over 3 s";
-  EXPECT_LT(std::fabs(s.d->qvel[1]), 1e-4);
+  EXPECT_GT(s.d->qpos[s.box_z], -0.0005) << "creep over 3 s";
+  EXPECT_LT(std::fabs(s.d->qvel[s.box_z]), 1e-4);
+  EXPECT_EQ(adapter.episodes().size(), 2u) << "one episode per fingertip";
+  // The limit is sharp: 1 % above it the box drops.
+  mj_resetData(s.m, s.d);
+  s.d->ctrl[0] = s.d->ctrl[1] =
+      0.99 * s.Load() / (TruthA().mu_coulomb + TruthB().mu_coulomb);
+  for (int i = 0; i < 600; ++i) {
+    s.m->opt.gravity[2] = i < 100 ? 0.0 : -9.81;
+    adapter.Step(s.m, s.d);
+  }
+  EXPECT_LT(s.d->qpos[s.box_z], -kDropM) << "held 1 % above the limit";
 }
 
 TEST(DropRate, StochasticTruthDropsAtTheRequestedRisk) {
   Scene s;
-  const StochasticFrictionModel truth = Truth();
+  const StochasticFrictionModel a = TruthA(), b = TruthB();
   for (double risk : {0.01, 0.05, 0.2}) {
-    // The grip force for the hold the episodes realise (issue 19's
-    // P(any slip during hold_s)), which must equal the one-instant answer
-    // under a per-episode eps.
+    // The two-contact grip force (pinch_grip.h) at the risk, and beside it
+    // the service's one-contact answer asked for half the load per finger.
+    const PinchGripForce g = CalcPinchGripForce(a, b, s.Load(), risk);
+    ASSERT_TRUE(g.attainable);
+    EXPECT_NEAR(g.slip_probability, risk, 1e-3);
     GripForceOptions hold;
     hold.hold_s = kHoldS;
-    const GripForce g = CalcGripForce(truth, s.Load(), risk, hold);
-    ASSERT_TRUE(g.attainable) << g.why;
-    EXPECT_NEAR(g.fn_n, CalcGripForce(truth, s.Load(), risk).fn_n, 1e-3);
+    const GripForce ga = CalcGripForce(a, 0.5 * s.Load(), risk, hold);
+    const GripForce gb = CalcGripForce(b, 0.5 * s.Load(), risk, hold);
+    ASSERT_TRUE(ga.attainable && gb.attainable) << ga.why << gb.why;
+    // Offset fraction 1: the hold's risk is the one-instant risk.
+    EXPECT_NEAR(ga.fn_n, CalcGripForce(a, 0.5 * s.Load(), risk).fn_n, 1e-3);
+    const double fn_service = std::max(ga.fn_n, gb.fn_n);
     FrictionAdapter stochastic(AdapterOptions{});
-    stochastic.TagGeom(s.m, "tip", truth);
+    s.Tag(&stochastic);
     AdapterOptions co;
     co.mode = FrictionMode::kCoulomb;
     FrictionAdapter coulomb(co);
-    coulomb.TagGeom(s.m, "tip", truth);
-    int drops = 0, drops_coulomb = 0, drops_default = 0;
-    for (int e = 0; e < kEpisodes; ++e)
+    s.Tag(&coulomb);
+    int drops = 0, drops_service = 0, drops_coulomb = 0, drops_default = 0;
+    for (int e = 0; e < kEpisodes; ++e) {
       drops += s.Episode(&stochastic, 1000 + e, g.fn_n);
+      if (e < kEpisodes / 2)
+        drops_service += s.Episode(&stochastic, 5000 + e, fn_service);
+    }
     for (int e = 0; e < 50; ++e) {
       drops_coulomb += s.Episode(&coulomb, e, g.fn_n);
       drops_default += s.Episode(nullptr, e, g.fn_n);
@@ -174,8 +243,10 @@ TEST(DropRate, StochasticTruthDropsAtTheRequestedRisk) {
     const int lo = BinomialQuantile(kEpisodes, risk, 0.005);
     const int hi = BinomialQuantile(kEpisodes, risk, 0.995);
     std::printf(
-        "risk %.2f: Fn %.3f N, load %.3f N; stochastic drops %d/%d (99%% "
-        "interval [%d, %d]); Coulomb mu=%.2f %d/50; MuJoCo default %d/50\n",
+        "risk %.2f: Fn %.3f N per finger, load %.3f N; stochastic drops "
+        "%d/%d (99%% interval [%d, %d]); service one-contact Fn %.3f N "
+        "(P %.4f) drops %d/%d; Coulomb mean mu %d/50; MuJoCo default "
+        "%d/50\n",
         risk,
         g.fn_n,
         s.Load(),
@@ -183,11 +254,15 @@ TEST(DropRate, StochasticTruthDropsAtTheRequestedRisk) {
         kEpisodes,
         lo,
         hi,
-        truth.mu_coulomb,
+        fn_service,
+        CalcPinchSlipProbability(a, b, fn_service, s.Load()),
+        drops_service,
+        kEpisodes / 2,
         drops_coulomb,
         drops_default);
     EXPECT_GE(drops, lo) << "risk " << risk;
     EXPECT_LE(drops, hi) << "risk " << risk;
+    EXPECT_LT(2 * drops_service, drops) << "the one-contact answer is safer";
     EXPECT_TRUE(drops_coulomb == 0 || drops_coulomb == 50);
   }
 }
@@ -195,18 +270,19 @@ TEST(DropRate, StochasticTruthDropsAtTheRequestedRisk) {
 TEST(Adapter, SameSeedSameRunAndRejectsRk4) {
   Scene s;
   FrictionAdapter a(AdapterOptions{});
-  a.TagGeom(s.m, "tip", Truth());
-  const GripForce g = CalcGripForce(Truth(), s.Load(), 0.2);
+  s.Tag(&a);
+  const PinchGripForce g =
+      CalcPinchGripForce(TruthA(), TruthB(), s.Load(), 0.2);
   std::vector<double> z;
   for (int e = 0; e < 20; ++e) {
     s.Episode(&a, e, g.fn_n);
-    z.push_back(s.d->qpos[1]);
+    z.push_back(s.d->qpos[s.box_z]);
   }
   for (int e = 0; e < 20; ++e) {
     s.Episode(&a, e, g.fn_n);
-    EXPECT_EQ(z[e], s.d->qpos[1]);
+    EXPECT_EQ(z[e], s.d->qpos[s.box_z]);
   }
-  EXPECT_THROW(a.TagGeom(s.m, "nope", Truth()), std::invalid_argument);
+  EXPECT_THROW(a.TagGeom(s.m, "nope", TruthA()), std::invalid_argument);
   s.m->opt.integrator = mjINT_RK4;
   EXPECT_THROW(a.Step(s.m, s.d), std::invalid_argument);
 }

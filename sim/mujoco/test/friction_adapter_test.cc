@@ -33,6 +33,22 @@ TEST(FrictionAdapter, ModesFollowEquationOne) {
   EXPECT_EQ(stochastic.CalcMu(m, 2.0, 1e6, 0.0), 1e-3);
 }
 
+TEST(FrictionAdapter, ClampsToTheFittedInputsWhenAsked) {
+  ModelSet felt = Felt();
+  StochasticFrictionModel& m = *felt.stochastic;
+  m.inputs["v_mm_s"] = {20.0, 5.0, 80.0};
+  m.inputs["fn_n"] = {2.0, 0.5, 4.5};
+  AdapterOptions o;
+  o.mode = FrictionMode::kMean;
+  // Extrapolated: 0.9 - 0.004 * 0 - 0.06 * 10.
+  EXPECT_NEAR(FrictionAdapter(o).CalcMu(m, 10.0, 0.0, 0.0), 0.3, 1e-12);
+  o.clamp_to_fitted_inputs = true;
+  // Clamped to v = 5, Fn = 4.5: 0.9 - 0.02 - 0.27.
+  EXPECT_NEAR(FrictionAdapter(o).CalcMu(m, 10.0, 0.0, 0.0), 0.61, 1e-12);
+  // Inside the range nothing changes.
+  EXPECT_NEAR(FrictionAdapter(o).CalcMu(m, 2.0, 10.0, 0.0), 0.74, 1e-12);
+}
+
 TEST(FrictionAdapter, RefusesBadInput) {
   AdapterOptions o;
   o.mu_max = 0.0;

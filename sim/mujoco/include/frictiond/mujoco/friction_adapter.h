@@ -6,23 +6,42 @@
 ///   mu = b0 + b1 v_slip + b2 Fn + eps                          (eq. 1)
 /// with Fn [N] and the slip speed v_slip [mm/s] of that geom pair taken from
 /// the previous step's contact forces (mj_contactForce) and constraint
-/// velocities, and eps drawn once per contact episode (the steps during which
-/// the pair stays in contact) from the material's empirical eps distribution
-/// (the stored quantiles), seeded so runs reproduce.
+/// velocities, and eps from the material's empirical eps distribution with
+/// its identified time correlation (eps_time.h), per contact episode (the
+/// steps during which the pair stays in contact), seeded so runs reproduce:
+///
+///   eps_t = F^-1(Phi(z_t)),  z_t = sqrt(f) A + sqrt(1 - f) w_t,
+///   A ~ N(0, 1) once per episode,  w_t = phi w_{t-1} + sqrt(1 - phi^2) e_t
+///
+/// with F^-1 = CalcEpsQuantileExtended (stored quantiles, fitted tail;
+/// tabulated over z in [-8, 8] at 0.004 when the geom is tagged),
+/// f = eps_time.offset_fraction, phi = eps_time.phi per eps_time.dt_s; w
+/// starts stationary (w_0 ~ N(0, 1)), is advanced once per elapsed dt_s of
+/// simulation time and held in between (the data's sampling: the hold risk
+/// of CalcGripForce counts 1 + hold_s / dt_s looks). A model without a
+/// valid eps_time, or EpsTime::kPerEpisode, holds one draw per episode
+/// (f = 1).
 ///
 /// Mechanism: Step() replaces mj_step for the Euler integrator. It runs the
 /// position stage with public calls in mj_fwdPosition's order, but sets
 /// d->contact[i].friction between mj_collision and mj_makeConstraint, then
-/// mj_forwardSkip(mjSTAGE_POS) and mj_Euler.
+/// the rest of mj_forward written out (the attached joint friction between
+/// mj_fwdActuation and mj_fwdAcceleration) and mj_Euler.
 ///
 /// Departures from the paper / limits (docs/mujoco.md):
-///  - eps is held constant per contact episode: the model's identified
-///    time correlation (eps_time: AR(1) phi, offset fraction) is ignored,
-///    i.e. simulated as offset fraction 1;
+///  - w is sampled-and-held at the data's dt_s, not interpolated; a
+///    simulation step longer than dt_s advances it by several steps at once;
 ///  - Fn and v_slip lag one step (they come from the previous step);
 ///  - only the Euler integrator (RK4 would call mj_forward internally and
 ///    reset friction); Step() throws otherwise;
-///  - no LuGre state per contact (not implemented).
+///  - no LuGre state per contact (not implemented);
+///  - MuJoCo 2.2.2's elliptic noslip lets a contact creep when one of its
+///    friction directions has an empty Jacobian: give contacting bodies
+///    freedom in both tangential directions.
+///
+/// Joint friction (issue 21 item 2): SetJointFriction attaches identified
+/// actuator friction laws (joint_friction.h) that Step applies as joint
+/// torques after the actuation stage.
 ///
 /// Usage:
 /// @code
@@ -41,37 +60,53 @@
 #include <mujoco/mujoco.h>
 
 #include "frictiond/estimators/stochastic_model.h"
+#include "frictiond/mujoco/joint_friction.h"
 #include "frictiond/proto/model_json.h"
 
 namespace frictiond::mujoco {
 
 /// How a tagged contact's mu is computed.
 enum class FrictionMode {
-  kStochastic,  ///< b0 + b1 v + b2 Fn + eps, eps per contact episode
+  kStochastic,  ///< b0 + b1 v + b2 Fn + eps (eps_time per episode)
   kMean,        ///< b0 + b1 v + b2 Fn (no eps)
   kCoulomb,     ///< the model's Coulomb constant mu_coulomb
+};
+
+/// Time structure of eps within a contact episode.
+enum class EpsTime {
+  kIdentified,  ///< the model's eps_time (AR(1) + offset) when valid
+  kPerEpisode,  ///< one draw per episode (offset fraction 1)
 };
 
 /// Options of the adapter.
 struct AdapterOptions {
   FrictionMode mode = FrictionMode::kStochastic;
-  std::uint64_t seed = 1;  ///< seed of the eps draws
-  double mu_min = 1e-3;    ///< mu is clamped to [mu_min, mu_max]
+  std::uint64_t seed = 1;                   ///< seed of the eps draws
+  EpsTime eps_time = EpsTime::kIdentified;  ///< eps within an episode
+  double mu_min = 1e-3;  ///< mu is clamped to [mu_min, mu_max]
   double mu_max = 5.0;
   /// A pair out of contact for longer than this ends its episode (the next
   /// touch draws a new eps); shorter gaps (chatter of a soft contact at the
   /// onset of slip) keep it [s].
   double episode_gap_s = 0.05;
+  /// Evaluate eq. (1) with Fn and v_slip clamped to the ranges the model
+  /// was fitted on (StochasticFrictionModel::inputs, when stored) instead
+  /// of extrapolating: a stick phase (v = 0) then gets the mu of the
+  /// slowest fitted slip, not a line continued to zero speed.
+  bool clamp_to_fitted_inputs = false;
 };
 
 /// State of one contact episode (a geom pair in contact).
 struct ContactEpisode {
-  double eps = 0.0;     ///< eps drawn when the episode began
-  double fn_n = 0.0;    ///< normal force of the pair at the last step [N]
-  double v_mm_s = 0.0;  ///< slip speed of the pair at the last step [mm/s]
-  double mu = 0.0;      ///< mu given at the last step
-  bool seen = false;    ///< in contact at the last step
-  double last_s = 0.0;  ///< simulation time of the last step in contact
+  double eps = 0.0;        ///< eps at the last step
+  double offset_z = 0.0;   ///< A: the episode's latent offset (N(0, 1))
+  double ar_z = 0.0;       ///< w: the AR(1) latent part (N(0, 1))
+  double next_ar_s = 0.0;  ///< simulation time of w's next advance
+  double fn_n = 0.0;       ///< normal force of the pair at the last step [N]
+  double v_mm_s = 0.0;     ///< slip speed of the pair at the last step [mm/s]
+  double mu = 0.0;         ///< mu given at the last step
+  bool seen = false;       ///< in contact at the last step
+  double last_s = 0.0;     ///< simulation time of the last step in contact
 };
 
 /// The adapter. Holds no pointer to the model or data between calls.
@@ -97,8 +132,16 @@ class FrictionAdapter {
   /// @throws std::invalid_argument when m->opt.integrator is not Euler.
   void Step(const mjModel* m, mjData* d);
 
-  /// Forgets all contact episodes and reseeds (start of a new episode).
+  /// Forgets all contact episodes and reseeds (start of a new episode);
+  /// resets the attached joint friction's states too.
   void Reset(std::uint64_t seed);
+
+  /// Attaches joint friction (joint_friction.h) that Step applies after
+  /// the actuation stage (nullptr detaches). Not owned: it must outlive
+  /// the adapter's Step calls.
+  void SetJointFriction(JointFriction* joint_friction) {
+    joint_friction_ = joint_friction;
+  }
 
   /// mu of a tagged model at (Fn, v) with a given eps, clamped.
   double CalcMu(const StochasticFrictionModel& model,
@@ -117,8 +160,12 @@ class FrictionAdapter {
 
   AdapterOptions options_;
   std::mt19937_64 rng_;
+  std::normal_distribution<double> normal_{0.0, 1.0};
   std::map<int, StochasticFrictionModel> tagged_;
+  /// Per tagged geom: eps = F^-1(Phi(z)) on a z grid (eps_time models).
+  std::map<int, std::vector<double>> latent_table_;
   std::map<std::pair<int, int>, ContactEpisode> episodes_;
+  JointFriction* joint_friction_ = nullptr;
 };
 
 }  // namespace frictiond::mujoco
