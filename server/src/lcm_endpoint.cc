@@ -327,6 +327,15 @@ class LcmEndpointImpl {
     publisher_->PublishToRobots(
         channel, m, KeysFor(robot), options_.security.send_unsigned);
   }
+  // material_reply_v1, and beside it material_reply_v2 with what the
+  // recogniser made of the query's image (null: no image).
+  void PublishReply(const material_reply_v1& reply,
+                    const LcmRecognition* recognition = nullptr) {
+    PublishToRobot(kLcmReplyChannel, reply, reply.robot);
+    PublishToRobot(kLcmReplyV2Channel,
+                   MakeMaterialReplyV2(reply, recognition),
+                   reply.robot);
+  }
 
   void PublishError(const std::string& type,
                     const std::string& request_id,
@@ -471,7 +480,7 @@ class LcmEndpointImpl {
         reply.model.version = 0;
         reply.model.n_terms = reply.model.n_quantiles = 0;
         reply.model.has_lugre = false;
-        PublishToRobot(kLcmReplyChannel, reply, reply.robot);
+        PublishReply(reply);
       }
       return;
     }
@@ -490,10 +499,11 @@ class LcmEndpointImpl {
     reply.model.n_terms = 0;
     reply.model.n_quantiles = 0;
     reply.model.has_lugre = false;
+    std::optional<LcmRecognition> seen;  // the image's recognition
     auto reject = [&](const std::string& field, const std::string& why) {
       reply.status = material_reply_v1::STATUS_ERROR;
       reply.reason = why;
-      PublishToRobot(kLcmReplyChannel, reply, reply.robot);
+      PublishReply(reply, seen ? &*seen : nullptr);
       PublishError(
           "material_query_v1", q.request_id, q.robot, 0, 0, -1, field, why);
     };
@@ -519,6 +529,8 @@ class LcmEndpointImpl {
       } catch (const std::invalid_argument& e) {
         return reject("image", std::string("image: ") + e.what());
       }
+      seen =
+          LcmRecognition{r.unknown, r.reason, r.operating_point, r.candidates};
       if (!r.unknown && !r.candidates.empty()) {
         q.material = r.candidates.front().first;
         reply.material = q.material;
@@ -535,7 +547,7 @@ class LcmEndpointImpl {
           library_.RequireModel(q.material, reply.fingertip, "lcm:" + q.robot);
       reply.status = material_reply_v1::STATUS_KNOWN;
       reply.model = ToLcm(*model);
-      PublishToRobot(kLcmReplyChannel, reply, reply.robot);
+      PublishReply(reply, seen ? &*seen : nullptr);
     } catch (const RequestError& e) {
       if (e.status() != 404 || !e.extra().contains("identification"))
         return reject(e.field() == "id" ? "material" : e.field(), e.what());
@@ -543,7 +555,7 @@ class LcmEndpointImpl {
       reply.status = material_reply_v1::STATUS_UNKNOWN;
       reply.reason = e.what();
       reply.job_id = ident.value("job_id", std::int64_t{0});
-      PublishToRobot(kLcmReplyChannel, reply, reply.robot);
+      PublishReply(reply, seen ? &*seen : nullptr);
       PublishIdentificationRequest(reply.job_id,
                                    q.request_id,
                                    q.robot,
