@@ -9,11 +9,11 @@
 /// is decoded (PNG or JPEG only), resized to a fixed working size, and
 /// described by histograms chosen for what a robot's camera changes:
 ///   - light colour: a grey-world chromaticity histogram (each channel
-///     divided by its mean, the median over the cells of a 4 x 4 grid so an
-///     occluder does not move it; a warmer or cooler lamp cancels), the
-///     texture computed on the light-balanced grey, and the mean colour
-///     compared with a tolerance as large as a lamp change along the
-///     warm-cool direction;
+///     divided by its mean, taken over the cells of a 4 x 4 grid within
+///     1.2x of the median cell's brightness so that a dark occluder does not
+///     tint it; a warmer or cooler lamp cancels), the texture computed on
+///     the light-balanced grey, and the mean colour compared with a
+///     tolerance as large as a lamp change;
 ///   - light intensity and falloff: grey divided by a wide Gaussian estimate
 ///     of the local light level before any texture histogram;
 ///   - noise: a 3 x 3 median filter before any histogram;
