@@ -55,24 +55,34 @@ std::size_t ScaleFeatureSize();
 int ScaleCount();
 /// Index of magnification 1 in a reference vector.
 int UnitScaleIndex();
-/// Total number of floats of a reference vector: ScaleCount() scales, then
-/// the QueryVariantCount() - 1 partial views at magnification 1.
+/// Total number of floats of a reference vector: ScaleCount() scales (the
+/// whole view at each magnification), then CellCount() cells of the view at
+/// magnification 1.
 std::size_t FeatureSize();
 
-/// Number of descriptions of a query: the whole view, then the view without
-/// each of its four quadrants (partial occlusion).
-int QueryVariantCount();
+/// Number of cells (a 4 x 4 grid) a view at magnification 1 is also
+/// described by, so that the matcher can leave out an occluded part.
+int CellCount();
 
 /// Query features of a decoded 8-bit BGR image of any size at magnification
-/// 1: QueryVariantCount() single-scale vectors (ScaleFeatureSize() floats
-/// each), the whole view first.
+/// 1: the whole view, then CellCount() cells (1 + CellCount() single-scale
+/// vectors of ScaleFeatureSize() floats).
 std::vector<float> ComputeFeatures(const cv::Mat& bgr);
 
 /// Reference features: ScaleCount() scales, the image as a camera at
 /// magnifications 0.5 .. 2 (steps of 2^(1/4)) would see it (scale
 /// UnitScaleIndex() is the whole view of ComputeFeatures(bgr)), then the
-/// other variants of ComputeFeatures(bgr).
+/// cells of ComputeFeatures(bgr).
 std::vector<float> ComputeReferenceFeatures(const cv::Mat& bgr);
+
+/// Single-scale vector of the union of the cells `kept[0..kept_count)` of
+/// `cells` (CellCount() single-scale vectors): each histogram block the
+/// normalised sum of the cells' histograms (cells weigh equally), the mean
+/// log chromaticities averaged. Written to `out` (ScaleFeatureSize()).
+void AggregateCells(const float* cells,
+                    const int* kept,
+                    int kept_count,
+                    float* out);
 
 /// Validates a reference vector given by a caller (size, finite, histogram
 /// blocks non-negative with unit norm, chromaticities bounded).

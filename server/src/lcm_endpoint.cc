@@ -269,6 +269,15 @@ class LcmEndpointImpl {
     publisher_->PublishToRobots(
         channel, m, KeysFor(robot), options_.security.send_unsigned);
   }
+  // material_reply_v1, and beside it material_reply_v2 with what the
+  // recogniser made of the query's image (null: no image).
+  void PublishReply(const material_reply_v1& reply,
+                    const LcmRecognition* recognition = nullptr) {
+    PublishToRobot(kLcmReplyChannel, reply, reply.robot);
+    PublishToRobot(kLcmReplyV2Channel,
+                   MakeMaterialReplyV2(reply, recognition),
+                   reply.robot);
+  }
 
   void PublishError(const std::string& type,
                     const std::string& request_id,
@@ -462,7 +471,7 @@ class LcmEndpointImpl {
         reply.model.version = 0;
         reply.model.n_terms = reply.model.n_quantiles = 0;
         reply.model.has_lugre = false;
-        PublishToRobot(kLcmReplyChannel, reply, reply.robot);
+        PublishReply(reply);
       }
       return;
     }
@@ -481,10 +490,11 @@ class LcmEndpointImpl {
     reply.model.n_terms = 0;
     reply.model.n_quantiles = 0;
     reply.model.has_lugre = false;
+    std::optional<LcmRecognition> seen;  // the image's recognition
     auto reject = [&](const std::string& field, const std::string& why) {
       reply.status = material_reply_v1::STATUS_ERROR;
       reply.reason = why;
-      PublishToRobot(kLcmReplyChannel, reply, reply.robot);
+      PublishReply(reply, seen ? &*seen : nullptr);
       PublishError(
           "material_query_v1", q.request_id, q.robot, 0, 0, -1, field, why);
     };
@@ -508,11 +518,16 @@ class LcmEndpointImpl {
         "lcm:" + q.robot);
     reply.material = found.material;
     reply.recognition_score = found.recognition_score;
+    if (found.recognition) {
+      const ImageRecognition& r = *found.recognition;
+      seen =
+          LcmRecognition{r.unknown, r.reason, r.operating_point, r.candidates};
+    }
     switch (found.outcome) {
       case ModelLookup::Outcome::kKnown:
         reply.status = material_reply_v1::STATUS_KNOWN;
         reply.model = ModelToLcm(*found.model);
-        PublishToRobot(kLcmReplyChannel, reply, reply.robot);
+        PublishReply(reply, seen ? &*seen : nullptr);
         return;
       case ModelLookup::Outcome::kUnknown:
         reply.status = material_reply_v1::STATUS_UNKNOWN;
@@ -520,7 +535,7 @@ class LcmEndpointImpl {
         reply.job_id = found.identification.requested
                            ? found.identification.job_id
                            : std::int64_t{0};
-        PublishToRobot(kLcmReplyChannel, reply, reply.robot);
+        PublishReply(reply, seen ? &*seen : nullptr);
         PublishIdentificationRequest(reply.job_id,
                                      q.request_id,
                                      q.robot,

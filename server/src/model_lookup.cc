@@ -63,6 +63,7 @@ ModelLookup LookUpModelForQuery(FrictionLibrary& library,
     } catch (const std::invalid_argument& e) {
       return reject("image", std::string("image: ") + e.what());
     }
+    out.recognition = r;
     if (!r.unknown && !r.candidates.empty()) {
       out.material = r.candidates.front().first;
       out.recognition_score = r.candidates.front().second;

@@ -40,9 +40,16 @@ class LcmEndpointTest : public ::testing::Test {
       if (image == "IMG-BAD")
         throw std::invalid_argument("cannot decode the image (not PNG/JPEG)");
       ImageRecognition r;
+      r.operating_point = 0.74;
       if (image.rfind("IMG:", 0) == 0) {
         r.unknown = false;
         r.candidates.emplace_back(image.substr(4), 0.87);
+        r.candidates.emplace_back("felt", 0.05);
+        r.reason =
+            image.substr(4) + " at 0.87, at or above the 0.74 operating point";
+      } else {
+        r.candidates.emplace_back("felt", 0.31);
+        r.reason = "closest is felt at 0.31, below the 0.74 operating point";
       }
       return r;
     };
@@ -189,6 +196,58 @@ TEST_F(LcmEndpointTest, BadQueryIsRejectedNamingTheField) {
   EXPECT_EQ(inbox_->errors.back().field, "material");
   EXPECT_EQ(inbox_->errors.back().message_type, "material_query_v1");
   EXPECT_TRUE(library_->store().ListJobs(false).empty());
+}
+
+TEST_F(LcmEndpointTest, ReplyV2CarriesTheRecognitionReasonAndCandidates) {
+  // Beside every material_reply_v1, a material_reply_v2 on
+  // FRICTIOND_REPLY_V2 with the same fields plus the recognition.
+  auto v2_of = [&](const std::string& request_id) {
+    material_reply_v2 out;
+    out.status = -1;
+    inbox_->WaitFor([&] {
+      for (const auto& r : inbox_->replies_v2) {
+        if (r.request_id == request_id) {
+          out = r;
+          return true;
+        }
+      }
+      return false;
+    });
+    return out;
+  };
+  material_reply_v1 r = Query("new-mat", "an unknown picture");
+  material_reply_v2 v2 = v2_of(r.request_id);
+  ASSERT_EQ(v2.status, +material_reply_v2::STATUS_UNKNOWN) << v2.reason;
+  EXPECT_EQ(v2.job_id, r.job_id);
+  EXPECT_EQ(v2.material, "new-mat");
+  EXPECT_TRUE(v2.recognition_unknown);
+  EXPECT_EQ(v2.recognition_reason,
+            "closest is felt at 0.31, below the 0.74 operating point");
+  EXPECT_DOUBLE_EQ(v2.recognition_operating_point, 0.74);
+  ASSERT_EQ(v2.n_candidates, 1);
+  EXPECT_EQ(v2.candidate_material[0], "felt");
+  EXPECT_DOUBLE_EQ(v2.candidate_score[0], 0.31);
+  // Recognised: accepted, two candidates, best first.
+  r = Query("proposed-id", "IMG:cork");
+  v2 = v2_of(r.request_id);
+  EXPECT_FALSE(v2.recognition_unknown);
+  EXPECT_EQ(v2.material, "cork");
+  ASSERT_EQ(v2.n_candidates, 2);
+  EXPECT_EQ(v2.candidate_material[0], "cork");
+  EXPECT_DOUBLE_EQ(v2.candidate_score[0], 0.87);
+  EXPECT_DOUBLE_EQ(v2.recognition_score, 0.87);
+  // No image: no recognition in the reply.
+  r = Query("felt");
+  v2 = v2_of(r.request_id);
+  EXPECT_EQ(v2.status, r.status);
+  EXPECT_TRUE(v2.recognition_unknown);
+  EXPECT_EQ(v2.n_candidates, 0);
+  EXPECT_EQ(v2.recognition_reason, "");
+  // Rejected after recognition: the error reply still says what was seen.
+  r = Query("", "an unknown picture");
+  v2 = v2_of(r.request_id);
+  EXPECT_EQ(v2.status, +material_reply_v2::STATUS_ERROR);
+  EXPECT_EQ(v2.n_candidates, 1);
 }
 
 TEST_F(LcmEndpointTest, ImageQueriesUseTheRecognitionHook) {

@@ -15,6 +15,7 @@
 #include "frictiond/identification_request_v2.hpp"
 #include "frictiond/material_query_v1.hpp"
 #include "frictiond/material_reply_v1.hpp"
+#include "frictiond/material_reply_v2.hpp"
 #include "frictiond/model_update_v1.hpp"
 #include "frictiond/proto/lcm_channels.h"
 #include "frictiond/stroke_chunk_v1.hpp"
@@ -26,6 +27,7 @@ class LcmInbox {
  public:
   explicit LcmInbox(const std::string& url) : lcm_(url) {
     lcm_.subscribe(kLcmReplyChannel, &LcmInbox::On<material_reply_v1>, this);
+    lcm_.subscribe(kLcmReplyV2Channel, &LcmInbox::On<material_reply_v2>, this);
     lcm_.subscribe(kLcmIdentRequestChannel,
                    &LcmInbox::On<identification_request_v1>,
                    this);
@@ -53,6 +55,7 @@ class LcmInbox {
   }
 
   std::vector<material_reply_v1> replies;
+  std::vector<material_reply_v2> replies_v2;
   std::vector<identification_request_v1> requests;
   std::vector<identification_request_v2> requests_v2;
   std::vector<coverage_progress_v1> progress;
@@ -65,6 +68,7 @@ class LcmInbox {
     Store(*m);
   }
   void Store(const material_reply_v1& m) { replies.push_back(m); }
+  void Store(const material_reply_v2& m) { replies_v2.push_back(m); }
   void Store(const identification_request_v1& m) { requests.push_back(m); }
   void Store(const identification_request_v2& m) { requests_v2.push_back(m); }
   void Store(const coverage_progress_v1& m) { progress.push_back(m); }

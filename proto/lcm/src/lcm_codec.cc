@@ -5,6 +5,7 @@
 // earlier int32 field; a nested struct has no fingerprint of its own.
 #include "frictiond/proto/lcm_codec.h"
 
+#include <algorithm>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -333,6 +334,30 @@ bool Fields(Reader& r, material_reply_v1* m) {
   return Fields(r, &m->model);
 }
 
+bool Fields(Reader& r, material_reply_v2* m) {
+  FRICTIOND_READ(r.I64("utime", &m->utime));
+  FRICTIOND_READ(r.String("request_id", &m->request_id));
+  FRICTIOND_READ(r.String("robot", &m->robot));
+  FRICTIOND_READ(r.String("material", &m->material));
+  FRICTIOND_READ(r.String("fingertip", &m->fingertip));
+  FRICTIOND_READ(r.I8("status", &m->status));
+  FRICTIOND_READ(r.String("reason", &m->reason));
+  FRICTIOND_READ(r.I64("job_id", &m->job_id));
+  FRICTIOND_READ(r.F64("recognition_score", &m->recognition_score));
+  FRICTIOND_READ(Fields(r, &m->model));
+  FRICTIOND_READ(r.Bool("recognition_unknown", &m->recognition_unknown));
+  FRICTIOND_READ(r.String("recognition_reason", &m->recognition_reason));
+  FRICTIOND_READ(
+      r.F64("recognition_operating_point", &m->recognition_operating_point));
+  FRICTIOND_READ(r.I32("n_candidates", &m->n_candidates));
+  // candidate_material (>= 5 bytes each: length + NUL), candidate_score (8).
+  FRICTIOND_READ(
+      r.Count("n_candidates", m->n_candidates, r.limits().max_candidates, 13));
+  FRICTIOND_READ(r.StringArray(
+      "candidate_material", m->n_candidates, &m->candidate_material));
+  return r.F64Array("candidate_score", m->n_candidates, &m->candidate_score);
+}
+
 template <class Request>
 bool CommonRequestFields(Reader& r, Request* m) {
   FRICTIOND_READ(r.I64("utime", &m->utime));
@@ -481,6 +506,7 @@ LcmDecodeResult Decode(const void* data,
   }
 FRICTIOND_DECODER(material_query_v1)
 FRICTIOND_DECODER(material_reply_v1)
+FRICTIOND_DECODER(material_reply_v2)
 FRICTIOND_DECODER(identification_request_v1)
 FRICTIOND_DECODER(identification_request_v2)
 FRICTIOND_DECODER(stroke_chunk_v1)
@@ -490,5 +516,38 @@ FRICTIOND_DECODER(model_update_v1)
 FRICTIOND_DECODER(error_v1)
 FRICTIOND_DECODER(signed_message_v1)
 #undef FRICTIOND_DECODER
+
+material_reply_v2 MakeMaterialReplyV2(const material_reply_v1& v1,
+                                      const LcmRecognition* recognition,
+                                      std::int32_t max_candidates) {
+  material_reply_v2 m;
+  m.utime = v1.utime;
+  m.request_id = v1.request_id;
+  m.robot = v1.robot;
+  m.material = v1.material;
+  m.fingertip = v1.fingertip;
+  m.status = v1.status;
+  m.reason = v1.reason;
+  m.job_id = v1.job_id;
+  m.recognition_score = v1.recognition_score;
+  m.model = v1.model;
+  m.recognition_unknown = true;
+  m.recognition_operating_point = 0.0;
+  m.n_candidates = 0;
+  if (recognition != nullptr) {
+    m.recognition_unknown = recognition->unknown;
+    m.recognition_reason = recognition->reason;
+    m.recognition_operating_point = recognition->operating_point;
+    const std::size_t n =
+        std::min(recognition->candidates.size(),
+                 static_cast<std::size_t>(std::max(max_candidates, 0)));
+    for (std::size_t i = 0; i < n; ++i) {
+      m.candidate_material.push_back(recognition->candidates[i].first);
+      m.candidate_score.push_back(recognition->candidates[i].second);
+    }
+    m.n_candidates = static_cast<std::int32_t>(n);
+  }
+  return m;
+}
 
 }  // namespace frictiond

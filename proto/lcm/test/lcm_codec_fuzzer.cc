@@ -35,7 +35,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data,
   if (size < 1) return 0;
   const std::uint8_t* msg = data + 1;
   const std::size_t n = size - 1;
-  switch (data[0] % 10) {
+  switch (data[0] % 11) {
     case 0:
       Check<frictiond::material_query_v1>(msg, n);
       break;
@@ -63,8 +63,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data,
     case 8:
       Check<frictiond::error_v1>(msg, n);
       break;
-    default:
+    case 9:
       Check<frictiond::signed_message_v1>(msg, n);
+      break;
+    default:
+      Check<frictiond::material_reply_v2>(msg, n);
       break;
   }
   return 0;

@@ -67,6 +67,20 @@ material_reply_v1 Sample() {
   r.model = SampleModel();
   return r;
 }
+template <>
+material_reply_v2 Sample() {
+  LcmRecognition recognition;
+  recognition.unknown = true;
+  recognition.reason =
+      "closest is ptfe at 0.62, below the 0.74 operating point";
+  recognition.operating_point = 0.74;
+  recognition.candidates = {{"ptfe", 0.62}, {"felt", 0.05}};
+  material_reply_v1 v1 = Sample<material_reply_v1>();
+  v1.status = material_reply_v1::STATUS_UNKNOWN;
+  v1.reason = "no model";
+  v1.job_id = 5;
+  return MakeMaterialReplyV2(v1, &recognition);
+}
 template <class Request>
 Request SampleRequest() {
   Request r{};
@@ -195,6 +209,7 @@ template <class T>
 class LcmCodecTest : public ::testing::Test {};
 using MessageTypes = ::testing::Types<material_query_v1,
                                       material_reply_v1,
+                                      material_reply_v2,
                                       identification_request_v1,
                                       identification_request_v2,
                                       stroke_chunk_v1,
@@ -390,6 +405,61 @@ TEST(LcmCodecChunk, BooleanOtherThanZeroOrOneIsMalformed) {
   EXPECT_EQ(r.field, "last");
 }
 
+TEST(LcmCodecReplyV2, CarriesTheRecognitionBesideV1sFields) {
+  const material_reply_v2 m = Sample<material_reply_v2>();
+  EXPECT_EQ(m.request_id, "req-1");
+  EXPECT_EQ(m.status, +material_reply_v2::STATUS_UNKNOWN);
+  EXPECT_EQ(m.job_id, 5);
+  EXPECT_TRUE(m.recognition_unknown);
+  EXPECT_EQ(m.recognition_reason,
+            "closest is ptfe at 0.62, below the 0.74 operating point");
+  EXPECT_DOUBLE_EQ(m.recognition_operating_point, 0.74);
+  ASSERT_EQ(m.n_candidates, 2);
+  EXPECT_EQ(m.candidate_material[1], "felt");
+  EXPECT_DOUBLE_EQ(m.candidate_score[0], 0.62);
+  // Without an image: unknown, no reason, no candidates.
+  const material_reply_v2 none =
+      MakeMaterialReplyV2(Sample<material_reply_v1>(), nullptr);
+  EXPECT_TRUE(none.recognition_unknown);
+  EXPECT_EQ(none.n_candidates, 0);
+  EXPECT_EQ(none.model.n_terms, Sample<material_reply_v1>().model.n_terms);
+  // The candidate list is capped.
+  LcmRecognition many;
+  many.candidates.assign(100, {"x", 0.1});
+  EXPECT_EQ(
+      MakeMaterialReplyV2(Sample<material_reply_v1>(), &many, 64).n_candidates,
+      64);
+}
+
+TEST(LcmCodecReplyV2, CandidateCountIsCheckedBeforeAllocating) {
+  material_reply_v2 m = Sample<material_reply_v2>();
+  LcmDecodeLimits limits;
+  limits.max_candidates = 1;
+  const std::string bytes = EncodeLcm(m);
+  material_reply_v2 out;
+  LcmDecodeResult r = DecodeLcm(bytes.data(), bytes.size(), &out, limits);
+  EXPECT_EQ(r.failure, LcmDecodeFailure::kOversized);
+  EXPECT_EQ(r.field, "n_candidates");
+  EXPECT_NE(r.detail.find("at most 1"), std::string::npos) << r.detail;
+  // A count that the bytes left cannot hold: truncated, nothing allocated.
+  m.n_candidates = 0;
+  m.candidate_material.clear();
+  m.candidate_score.clear();
+  std::string b = EncodeLcm(m);
+  // n_candidates is the last 4 bytes of a message without candidates.
+  b[b.size() - 4] = 0x00;
+  b[b.size() - 3] = 0x00;
+  b[b.size() - 2] = 0x00;
+  b[b.size() - 1] = 0x30;  // 48 candidates, 0 bytes left
+  r = DecodeLcm(b.data(), b.size(), &out);
+  EXPECT_EQ(r.failure, LcmDecodeFailure::kTruncated);
+  EXPECT_EQ(r.field, "n_candidates");
+  b[b.size() - 4] = static_cast<char>(0xFF);  // negative
+  r = DecodeLcm(b.data(), b.size(), &out);
+  EXPECT_EQ(r.failure, LcmDecodeFailure::kMalformed);
+  EXPECT_EQ(r.field, "n_candidates");
+}
+
 // Writes the seed corpus of lcm_codec_fuzzer (one file per type: the type
 // byte, then the sample) when FRICTIOND_WRITE_LCM_SEEDS names a directory.
 template <class Message>
@@ -410,6 +480,7 @@ TEST(LcmCodecSeeds, WriteWhenAsked) {
   WriteSeed<model_update_v1>(dir, 7, "model_update_v1");
   WriteSeed<error_v1>(dir, 8, "error_v1");
   WriteSeed<signed_message_v1>(dir, 9, "signed_message_v1");
+  WriteSeed<material_reply_v2>(dir, 10, "material_reply_v2");
 }
 
 }  // namespace

@@ -11,6 +11,9 @@ namespace frictiond {
 inline constexpr const char* kLcmQueryChannel = "FRICTIOND_QUERY_V1";
 /// Daemon -> robot: material_reply_v1.
 inline constexpr const char* kLcmReplyChannel = "FRICTIOND_REPLY_V1";
+/// Daemon -> robot: material_reply_v2 (v1's reply plus the recognition's
+/// verdict, reason and candidates), published beside v1.
+inline constexpr const char* kLcmReplyV2Channel = "FRICTIOND_REPLY_V2";
 /// Daemon -> robot: identification_request_v1 (the test stroke to perform).
 inline constexpr const char* kLcmIdentRequestChannel =
     "FRICTIOND_IDENT_REQUEST_V1";

@@ -9,17 +9,23 @@
 /// is decoded (PNG or JPEG only), resized to a fixed working size, and
 /// described by histograms chosen for what a robot's camera changes:
 ///   - light colour: a grey-world chromaticity histogram (each channel
-///     divided by its mean, so a warmer or cooler lamp cancels) plus the mean
-///     colour compared with a tolerance as large as a lamp change;
+///     divided by its mean, taken over the cells of a 4 x 4 grid within
+///     1.2x of the median cell's brightness so that a dark occluder does not
+///     tint it; a warmer or cooler lamp cancels), the texture computed on
+///     the light-balanced grey, and the mean colour compared with a
+///     tolerance as large as a lamp change;
 ///   - light intensity and falloff: grey divided by a wide Gaussian estimate
 ///     of the local light level before any texture histogram;
+///   - noise: a 3 x 3 median filter before any histogram;
 ///   - in-plane rotation: rotation-invariant uniform LBP (riu2, 8 samples) at
 ///     radii 1, 2, 3 on the working image and 1, 2 at half and quarter
 ///     resolution;
 ///   - distance: every reference is described at nine magnifications
 ///     (0.5 .. 2, steps of 2^(1/4)), and a query is compared with each;
-///   - partial occlusion: a query is also described without each of its
-///     four quadrants, and the best of these descriptions counts.
+///   - partial occlusion: a query is also described per cell of a 4 x 4
+///     grid; per reference, the 12 cells most like it are pooled into a
+///     partial view, and the better of the whole and the partial view
+///     counts.
 /// Each histogram is compared by histogram intersection; the similarity of
 /// two images is in [0, 1] (1 = identical histograms) and a material's
 /// similarity is the best over its references, their scales and the query's
@@ -92,12 +98,12 @@ struct RecognitionResult {
 struct RecognizerOptions {
   /// Slope of the score calibration [1/similarity] (Platt scaling), fitted on
   /// the tuning views of recognition/test/recognition_calibration_test.cc.
-  static constexpr double kCalibrationSlope = 31.93;
+  static constexpr double kCalibrationSlope = 35.29;
   /// Similarity at which the calibrated score is 0.5.
-  static constexpr double kCalibrationMidpoint = 0.9306;
+  static constexpr double kCalibrationMidpoint = 0.9365;
   /// Default operating point: the calibrated score at which at most 3 % of
   /// the tuning views of materials not in the library were accepted.
-  static constexpr double kDefaultOperatingPoint = 0.81;
+  static constexpr double kDefaultOperatingPoint = 0.74;
 
   /// The operating point: a query whose best calibrated score is below this
   /// is unknown. Must be in [0, 1].
@@ -158,7 +164,7 @@ class MaterialRecognizer {
   /// Version of the feature layout and extraction method. Persisted feature
   /// vectors must be discarded (and recomputed from the images) when it
   /// changes.
-  static constexpr int kFeatureVersion = 2;
+  static constexpr int kFeatureVersion = 3;
 
   /// Decodes `encoded_image` and registers it as a reference for
   /// `material_id`. A material may have any number of references; several

@@ -8,6 +8,7 @@
 /// recognition of a query image and turns every failure into a result.
 
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "frictiond/server/identification_jobs.h"
@@ -33,6 +34,9 @@ struct ModelLookup {
   std::string field;          ///< kRejected (the request's field)
   std::string message;        ///< kUnknown, kRejected, kUnavailable: in words
   bool store_outage = false;  ///< kUnavailable: the store is unreachable
+  /// What the recogniser made of the query's image (none without an image;
+  /// set from the recognition on, whatever the outcome).
+  std::optional<ImageRecognition> recognition;
 };
 
 /// The newest model of (material, fingertip), or kUnknown with the

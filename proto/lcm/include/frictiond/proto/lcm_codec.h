@@ -29,6 +29,8 @@
 #include <cstdint>
 #include <stdexcept>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "frictiond/coverage_progress_v1.hpp"
 #include "frictiond/error_v1.hpp"
@@ -37,6 +39,7 @@
 #include "frictiond/identification_request_v2.hpp"
 #include "frictiond/material_query_v1.hpp"
 #include "frictiond/material_reply_v1.hpp"
+#include "frictiond/material_reply_v2.hpp"
 #include "frictiond/model_update_v1.hpp"
 #include "frictiond/signed_message_v1.hpp"
 #include "frictiond/stroke_chunk_v1.hpp"
@@ -74,6 +77,8 @@ struct LcmDecodeLimits {
   std::int32_t max_terms = 256;
   std::int32_t max_quantiles = 4096;
   std::int32_t max_missing = 65536;
+  /// Candidates of a material_reply_v2.
+  std::int32_t max_candidates = 64;
   /// Payload of a signed_message_v1 [bytes].
   std::size_t max_payload_bytes = 16u << 20;
 };
@@ -100,6 +105,10 @@ LcmDecodeResult DecodeLcm(const void* data,
 LcmDecodeResult DecodeLcm(const void* data,
                           std::size_t size,
                           material_reply_v1* out,
+                          const LcmDecodeLimits& limits = {});
+LcmDecodeResult DecodeLcm(const void* data,
+                          std::size_t size,
+                          material_reply_v2* out,
                           const LcmDecodeLimits& limits = {});
 LcmDecodeResult DecodeLcm(const void* data,
                           std::size_t size,
@@ -133,6 +142,23 @@ LcmDecodeResult DecodeLcm(const void* data,
                           std::size_t size,
                           signed_message_v1* out,
                           const LcmDecodeLimits& limits = {});
+
+/// What the recogniser made of a query's image, for material_reply_v2.
+struct LcmRecognition {
+  bool unknown = true;
+  std::string reason;
+  double operating_point = 0.0;
+  /// (material, calibrated score), best first.
+  std::vector<std::pair<std::string, double>> candidates;
+};
+
+/// material_reply_v2 from the material_reply_v1 sent for the same query and
+/// the recognition of its image (null: the query carried no image, or it was
+/// rejected before recognition: unknown, no reason, no candidates). At most
+/// `max_candidates` candidates are copied.
+material_reply_v2 MakeMaterialReplyV2(const material_reply_v1& v1,
+                                      const LcmRecognition* recognition,
+                                      std::int32_t max_candidates = 64);
 
 /// Encodes a message with lcm-gen's encoder into a byte string (fingerprint
 /// included). @throws std::runtime_error when encoding fails.
