@@ -145,7 +145,7 @@ int History(int uploads) {
       std::to_string(uploads) +
       " interleaved uploads per pair after one untimed upload each; "
       "value/baseline = " +
-      std::to_string(RoundSignificant(out.value / out.baseline, 3));
+      nlohmann::json(RoundSignificant(out.value / out.baseline, 3)).dump();
   PrintBenchLine(out);
   return 0;
 }

@@ -48,7 +48,7 @@ namespace frictiond {
 struct IngestorOptions {
   /// Samples of older uploads a refit is given at most (the new upload comes
   /// on top, whole). Below it a refit sees every stored sample of the pair.
-  std::size_t fit_sample_cap = 6'000;
+  std::size_t fit_sample_cap = 4'000;
   /// Parsed samples kept over all pairs; beyond it the least recently used
   /// pairs' caches are dropped (reloaded from the store on their next
   /// upload). The pair being ingested is always kept, so one pair whose
