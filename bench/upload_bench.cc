@@ -147,7 +147,8 @@ int History(int uploads) {
       "HTTP loopback to the daemon (all family fitters, SQLite "
       "synchronous=FULL); median of " +
       std::to_string(uploads) +
-      " interleaved uploads per pair after one untimed upload each; "
+      " interleaved uploads per size, each pair warmed by one untimed upload "
+      "(a fresh 10-stroke pair per timed upload); "
       "value/baseline = " +
       nlohmann::json(RoundSignificant(out.value / out.baseline, 3)).dump();
   PrintBenchLine(out);
@@ -183,7 +184,41 @@ double Throughput(const testing::DaemonProcess& daemon,
   return done / SecondsSince(t0);
 }
 
+/// The same comparison in-process through FrictionLibrary::IngestStrokes
+/// (no HTTP, no token check or audit entry): the ingestor's own parallelism.
+/// Diagnostic on stderr only.
+void ParallelInProcess(double seconds) {
+  testing::TempDir dir("bench_upload_parallel_lib");
+  const std::string db = dir.path() + "/library.db";
+  for (const char* m : {"par-a", "par-b", "solo"})
+    Seed(db, m, 10, m[0] == 's' ? 7000 : (m[4] == 'a' ? 8000 : 9000));
+  FrictionLibrary lib(OpenStore(db));
+  for (const char* m : {"par-a", "par-b", "solo"})
+    lib.IngestStrokes(m, StrokeCsv(90000), {});
+  auto run = [&](const std::vector<std::string>& materials) {
+    std::atomic<int> done{0};
+    std::vector<std::thread> threads;
+    const auto t0 = Clock::now();
+    for (std::size_t c = 0; c < materials.size(); ++c) {
+      threads.emplace_back([&, c] {
+        for (std::uint64_t i = 0; SecondsSince(t0) < seconds; ++i) {
+          lib.IngestStrokes(materials[c], StrokeCsv(400000 + 1000 * c + i), {});
+          ++done;
+        }
+      });
+    }
+    for (auto& t : threads) t.join();
+    return done / SecondsSince(t0);
+  };
+  const double one = run({"solo"});
+  const double two = run({"par-a", "par-b"});
+  std::cerr << "upload_parallel: in-process FrictionLibrary (no HTTP, no "
+            << "audit): one client " << one << " uploads/s, two clients " << two
+            << " uploads/s (" << two / one << "x)\n";
+}
+
 int Parallel(double seconds) {
+  ParallelInProcess(seconds / 2);
   testing::TempDir dir("bench_upload_parallel");
   const std::string db = dir.path() + "/library.db";
   for (const char* m : {"par-a", "par-b", "solo"})
