@@ -102,7 +102,10 @@ std::string Key(const std::string& material, const std::string& fingertip) {
 
 FrictionLibrary::FrictionLibrary(std::unique_ptr<Store> store,
                                  LibraryOptions options)
-    : store_(std::move(store)), options_(options) {}
+    : store_(std::move(store)), options_(options) {
+  options_.ingest.max_samples_per_upload = options_.max_samples_per_upload;
+  ingestor_ = std::make_unique<Ingestor>(*store_, options_.ingest);
+}
 
 FrictionLibrary::~FrictionLibrary() {
   // The store's listener thread calls back into this object.
@@ -128,6 +131,7 @@ void FrictionLibrary::ForgetAnnounced(const std::string& material) {
 
 void FrictionLibrary::OnStoreChange(const std::string& material,
                                     const std::string& fingertip) {
+  ingestor_->Invalidate(material, fingertip);
   if (material.empty()) {
     InvalidateAllCached();
     return;
@@ -229,6 +233,7 @@ bool FrictionLibrary::PutMaterial(const std::string& id,
 bool FrictionLibrary::DeleteMaterial(const std::string& id) {
   CheckId(id, "id");
   const bool deleted = store_->DeleteMaterial(id);
+  ingestor_->Invalidate(id, "");
   ForgetAnnounced(id);
   std::unique_lock lock(cache_mu_);
   ++cache_gen_;
@@ -329,23 +334,14 @@ StrokeData FrictionLibrary::LoadStrokes(
                     : SlipLabelOptions{};
   }
   StrokeData all;
-  for (const StrokeRecord& info : store_->ListStrokes(material, fingertip)) {
-    auto s = store_->GetStroke(info.id);
-    if (!s) continue;
+  for (const StrokeRecord& s :
+       store_->ListStrokesAfter(material, fingertip, 0, /*with_csv=*/true)) {
     StrokeData d = ParseStrokeCsv(
-        s->csv, StrokeCsvOptions{options_.max_samples_per_upload, 64});
+        s.csv, StrokeCsvOptions{options_.max_samples_per_upload, 64});
     PrepareUpload(&d, *labelling);
     all.Append(d);
   }
   return all;
-}
-
-void FrictionLibrary::PrepareUpload(StrokeData* data,
-                                    const SlipLabelOptions& labelling) {
-  // Labels, strokes and derived features are per upload: time gaps,
-  // dwell and distance restart with each upload.
-  EnsureLabels(data, labelling);
-  AddDerivedFeatures(data, labelling.gap_factor);
 }
 
 IngestResult FrictionLibrary::IngestStrokes(const std::string& material,
@@ -368,8 +364,9 @@ IngestResult FrictionLibrary::IngestStrokes(const std::string& material,
             : 400;
     throw RequestError(status, e.field(), e.what(), json{{"line", e.line()}});
   }
-  std::lock_guard<std::mutex> lock(ingest_mu_);
-  // 2. Labelling: explicit, else the pair's previous one, else defaults.
+  // 2. One upload of the pair at a time, in arrival order.
+  Ingestor::PairLock pair = ingestor_->Lock(material, options.fingertip);
+  // 3. Labelling: explicit, else the pair's previous one, else defaults.
   SlipLabelOptions labelling;
   auto previous = FindModel(material, options.fingertip);
   if (options.labelling) {
@@ -377,15 +374,73 @@ IngestResult FrictionLibrary::IngestStrokes(const std::string& material,
   } else if (previous && previous->set.stochastic) {
     labelling = previous->set.stochastic->labelling;
   }
-  // 3. Refit on all strokes of the pair plus this one.
-  StrokeData all = LoadStrokes(material, options.fingertip, labelling);
+  // 4. The refit's data: the pair's cached uploads (bounded) + this one.
   const std::size_t n_new = upload.size();
   PrepareUpload(&upload, labelling);
-  if (all.empty()) {
-    all = upload;  // first upload of the pair: no merge needed
-  } else {
-    all.Append(upload);
+  const FitData data = ingestor_->AssembleFitData(pair, labelling, upload);
+  ModelSetFit fit = FitModelSet(material,
+                                options.fingertip,
+                                data.strokes,
+                                upload,
+                                previous.get(),
+                                labelling);
+  if (fit.status != FitStatus::kOk && fit.status != FitStatus::kPartial) {
+    throw RequestError(
+        422,
+        "v_mm_s",
+        "stroke accepted as CSV but no model can be identified: " + fit.why,
+        json{{"fit_status", ToString(fit.status)}});
   }
+  // 5. One transaction: stroke + model version.
+  StrokeRecord stroke;
+  stroke.material = material;
+  stroke.fingertip = options.fingertip;
+  stroke.robot = options.robot;
+  stroke.samples = static_cast<std::int64_t>(n_new);
+  stroke.csv = csv;
+  ModelRecord record;
+  record.material = material;
+  record.fingertip = options.fingertip;
+  record.reason = "upload";
+  json doc = ModelSetToJson(fit.set);
+  doc.erase("version");
+  doc.erase("created_at");
+  record.json = doc.dump();
+  const UploadCommit commit = store_->CommitUpload(stroke, record);
+  // 6. The committed version, from what was committed (no re-read).
+  record.version = commit.version;
+  record.created_at = commit.created_at;
+  record.stroke_id = commit.stroke_id;
+  IngestResult out;
+  out.stroke_id = commit.stroke_id;
+  out.version = commit.version;
+  out.material_created = commit.material_created;
+  out.samples = n_new;
+  out.model = Publish(doc, record);
+  ingestor_->Append(pair, commit.stroke_id, std::move(upload));
+  out.fit_status = ToString(fit.status);
+  out.fit_note = fit.why;
+  if (data.uploads_used < data.uploads_stored) {
+    out.fit_note +=
+        (out.fit_note.empty() ? "" : "; ") + std::string("bounded refit: ") +
+        std::to_string(data.uploads_used) + " of " +
+        std::to_string(data.uploads_stored) + " stored uploads (" +
+        std::to_string(data.samples_used) + " of " +
+        std::to_string(data.samples_stored) + " samples) with this one";
+  }
+  if (!fit.note.empty())
+    out.fit_note += (out.fit_note.empty() ? "" : "; ") + fit.note;
+  Notify(out.model);
+  return out;
+}
+
+FrictionLibrary::ModelSetFit FrictionLibrary::FitModelSet(
+    const std::string& material,
+    const std::string& fingertip,
+    const StrokeData& strokes,
+    const StrokeData& upload,
+    const CachedModel* previous,
+    const SlipLabelOptions& labelling) const {
   StochasticFitOptions fit_options;
   fit_options.labelling = labelling;
   if (previous && previous->set.stochastic) {
@@ -393,7 +448,7 @@ IngestResult FrictionLibrary::IngestStrokes(const std::string& material,
     std::vector<std::string> terms;
     bool computable = true;
     for (const Term& t : previous->set.stochastic->mu.terms) {
-      if (t.kind != TermKind::kIntercept && !all.Column(t.input))
+      if (t.kind != TermKind::kIntercept && !strokes.Column(t.input))
         computable = false;
       terms.push_back(t.Name());
     }
@@ -407,71 +462,67 @@ IngestResult FrictionLibrary::IngestStrokes(const std::string& material,
     std::string note;
   };
   std::future<std::vector<FamilyFit>> families =
-      std::async(std::launch::async, [this, &all, &upload, &previous] {
+      std::async(std::launch::async, [this, &strokes, &upload, previous] {
         std::vector<FamilyFit> out;
         for (const auto& [family, fitter] : fitters_) {
           FamilyFit f{family, nullptr, ""};
-          f.model = fitter(all, upload, previous.get(), &f.note);
+          f.model = fitter(strokes, upload, previous, &f.note);
           out.push_back(std::move(f));
         }
         return out;
       });
-  StochasticFit fit = FitStochasticModel(all, fit_options);
-  if (fit.status != FitStatus::kOk && fit.status != FitStatus::kPartial) {
-    families.wait();  // it reads `all`
-    throw RequestError(
-        422,
-        "v_mm_s",
-        "stroke accepted as CSV but no model can be identified: " + fit.why,
-        json{{"fit_status", ToString(fit.status)}});
+  ModelSetFit out;
+  StochasticFit fit;
+  try {
+    fit = FitStochasticModel(strokes, fit_options);
+  } catch (...) {
+    families.wait();  // it reads `strokes`
+    throw;
   }
-  // 4. One transaction: stroke + model version.
-  ModelSet set;
-  set.material = material;
-  set.fingertip = options.fingertip;
-  set.stochastic = fit.model;
+  out.status = fit.status;
+  out.why = fit.why;
+  if (fit.status != FitStatus::kOk && fit.status != FitStatus::kPartial) {
+    families.wait();
+    return out;
+  }
+  out.set.material = material;
+  out.set.fingertip = fingertip;
+  out.set.stochastic = std::move(fit.model);
   if (previous) {
     for (auto it = previous->set.other.begin(); it != previous->set.other.end();
          ++it) {
-      if (it.key() != "reason") set.other[it.key()] = *it;
+      if (it.key() != "reason") out.set.other[it.key()] = *it;
     }
   }
-  std::string family_notes;
   for (FamilyFit& f : families.get()) {
-    if (!f.model.is_null()) set.other[f.family] = std::move(f.model);
+    if (!f.model.is_null()) out.set.other[f.family] = std::move(f.model);
     if (!f.note.empty()) {
-      family_notes +=
-          (family_notes.empty() ? "" : "; ") + f.family + ": " + f.note;
+      out.note += (out.note.empty() ? "" : "; ") + f.family + ": " + f.note;
     }
   }
-  StrokeRecord stroke;
-  stroke.material = material;
-  stroke.fingertip = options.fingertip;
-  stroke.robot = options.robot;
-  stroke.samples = static_cast<std::int64_t>(n_new);
-  stroke.csv = csv;
-  ModelRecord record;
-  record.material = material;
-  record.fingertip = options.fingertip;
-  record.reason = "upload";
-  json doc = ModelSetToJson(set);
-  doc.erase("version");
-  doc.erase("created_at");
-  record.json = doc.dump();
-  const UploadCommit commit = store_->CommitUpload(stroke, record);
-  Invalidate(material, options.fingertip);
-  IngestResult out;
-  out.stroke_id = commit.stroke_id;
-  out.version = commit.version;
-  out.material_created = commit.material_created;
-  out.samples = n_new;
-  out.model = FindModel(material, options.fingertip);
-  out.fit_status = ToString(fit.status);
-  out.fit_note = fit.why;
-  if (!family_notes.empty())
-    out.fit_note += (out.fit_note.empty() ? "" : "; ") + family_notes;
-  Notify(out.model);
   return out;
+}
+
+std::shared_ptr<const CachedModel> FrictionLibrary::Publish(
+    const json& doc, const ModelRecord& record) {
+  // What Decode(record) would give, built from the committed document
+  // (no text round trip through the store).
+  auto cm = std::make_shared<CachedModel>();
+  cm->set = ModelSetFromJson(doc);
+  cm->set.material = record.material;
+  cm->set.fingertip = record.fingertip;
+  cm->set.version = record.version;
+  cm->set.created_at = record.created_at;
+  json out = ModelSetToJson(cm->set);
+  out["reason"] = record.reason;
+  cm->json_text = out.dump();
+  const std::string key = Key(record.material, record.fingertip);
+  std::unique_lock lock(cache_mu_);
+  ++cache_gen_;  // a read racing with this commit does not cache
+  stale_.erase(key);
+  auto& slot = cache_[key];
+  if (!slot || slot->set.version < cm->set.version) slot = cm;
+  return cm;
 }
 
 std::shared_ptr<const CachedModel> FrictionLibrary::AddModelVersion(
@@ -480,7 +531,7 @@ std::shared_ptr<const CachedModel> FrictionLibrary::AddModelVersion(
     const StochasticFrictionModel& model,
     const std::string& reason,
     const json& extra_families) {
-  std::lock_guard<std::mutex> lock(ingest_mu_);
+  Ingestor::PairLock pair = ingestor_->Lock(material, fingertip);
   ModelSet set;
   set.material = material;
   set.fingertip = fingertip;
@@ -510,7 +561,7 @@ std::shared_ptr<const CachedModel> FrictionLibrary::AddFamilyVersion(
     const std::string& family,
     const json& family_json,
     const std::string& reason) {
-  std::lock_guard<std::mutex> lock(ingest_mu_);
+  Ingestor::PairLock pair = ingestor_->Lock(material, fingertip);
   if (!store_->GetMaterial(material)) {
     Material m;
     m.id = material;
@@ -554,10 +605,12 @@ void FrictionLibrary::Invalidate(const std::string& material,
 
 void FrictionLibrary::InvalidateCached(const std::string& material,
                                        const std::string& fingertip) {
+  ingestor_->Invalidate(material, fingertip);
   Invalidate(material, fingertip);
 }
 
 void FrictionLibrary::InvalidateAllCached() {
+  ingestor_->Invalidate("", "");
   std::unique_lock lock(cache_mu_);
   ++cache_gen_;
   for (auto& [key, model] : cache_) stale_[key] = model;

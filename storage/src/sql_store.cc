@@ -335,6 +335,7 @@ class SqlStore final : public Store {
       ModelRecord m = model;
       m.stroke_id = out.stroke_id;
       out.version = AppendModel(c, m, now);
+      out.created_at = now;
       c.Execute(std::string("UPDATE jobs SET state='") +
                     JobStateName(JobState::kFitted) +
                     "', detail=$1, "
@@ -379,6 +380,21 @@ class SqlStore final : public Store {
                              ",csv FROM strokes WHERE id=$1",
                              Params().Int(id)),
                    ReadStroke);
+    });
+  }
+
+  std::vector<StrokeRecord> ListStrokesAfter(const std::string& material,
+                                             const std::string& fingertip,
+                                             std::int64_t after_id,
+                                             bool with_csv) override {
+    return Read([&](Connection& c) {
+      return All(
+          c.Execute(std::string("SELECT " FRICTIOND_STROKE_COLUMNS) +
+                        (with_csv ? ",csv" : ",''") +
+                        " FROM strokes WHERE material=$1 AND "
+                        "fingertip=$2 AND id>$3 ORDER BY id",
+                    Params().Text(material).Text(fingertip).Int(after_id)),
+          ReadStroke);
     });
   }
 

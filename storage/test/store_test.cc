@@ -175,6 +175,41 @@ TEST_P(StoreTest, UploadsAppendVersionsNeverOverwrite) {
   EXPECT_FALSE(store_->GetStroke(c1.stroke_id));
 }
 
+TEST_P(StoreTest, StrokesAfterAnIdComeInOneListOldestFirst) {
+  StrokeRecord s;
+  s.material = "felt";
+  s.samples = 1;
+  std::vector<std::int64_t> ids;
+  for (int i = 0; i < 4; ++i) {
+    s.csv = "t_s,fn_n,ft_n,v_mm_s\n" + std::to_string(i) + ",1,1,0\n";
+    ids.push_back(store_->CommitUpload(s, Model("felt", "{}")).stroke_id);
+  }
+  StrokeRecord other = s;  // another pair's stroke is not listed
+  other.fingertip = "tip-b";
+  ModelRecord m2 = Model("felt", "{}");
+  m2.fingertip = "tip-b";
+  const UploadCommit c = store_->CommitUpload(other, m2);
+  EXPECT_FALSE(c.created_at.empty());
+  EXPECT_EQ(store_->GetModel("felt", "tip-b", c.version)->created_at,
+            c.created_at);
+
+  const auto all = store_->ListStrokesAfter("felt", "default", 0, true);
+  ASSERT_EQ(all.size(), 4u);
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    EXPECT_EQ(all[i].id, ids[i]);
+    EXPECT_EQ(all[i].csv, store_->GetStroke(ids[i])->csv) << i;
+  }
+  const auto after = store_->ListStrokesAfter("felt", "default", ids[1], false);
+  ASSERT_EQ(after.size(), 2u);
+  EXPECT_EQ(after[0].id, ids[2]);
+  EXPECT_EQ(after[1].id, ids[3]);
+  EXPECT_TRUE(after[0].csv.empty());
+  EXPECT_EQ(after[0].samples, 1);
+  EXPECT_TRUE(
+      store_->ListStrokesAfter("felt", "default", ids[3], true).empty());
+  EXPECT_TRUE(store_->ListStrokesAfter("none", "default", 0, true).empty());
+}
+
 TEST_P(StoreTest, IdentificationJobsOpenOncePerPair) {
   IdentificationJob j;
   j.material = "unknown-cloth";

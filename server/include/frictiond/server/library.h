@@ -22,6 +22,7 @@
 #include "frictiond/estimators/stochastic_model.h"
 #include "frictiond/proto/model_json.h"
 #include "frictiond/server/identification_jobs.h"
+#include "frictiond/server/ingestor.h"
 #include "frictiond/server/request_error.h"
 #include "frictiond/storage/store.h"
 
@@ -88,6 +89,9 @@ struct LibraryOptions {
   /// gets the stroke plan, with "requested": false and the reason.
   int max_open_requests_per_requester = 64;
   int max_open_requests = 4096;
+  /// Stroke cache and bounded refit of IngestStrokes (ingestor.h); its
+  /// max_samples_per_upload is taken from the field above.
+  IngestorOptions ingest;
 };
 
 /// Thread-safe service core. Not copyable or movable.
@@ -140,8 +144,14 @@ class FrictionLibrary {
   /// Identification jobs: the only writer of a job's state.
   IdentificationJobs& jobs() { return jobs_; }
 
-  /// Validates a stroke CSV, refits the pair's model on all its strokes and
-  /// stores stroke + model version in one transaction.
+  /// Validates a stroke CSV, refits the pair's model and stores stroke +
+  /// model version in one transaction. Uploads of one (material, fingertip)
+  /// pair run one at a time in arrival order (versions follow it); other
+  /// pairs proceed in parallel. The refit gets the pair's stored uploads
+  /// from the ingestor's cache, all of them up to
+  /// LibraryOptions::ingest.fit_sample_cap older samples and a stratified
+  /// choice above it (ingestor.h, docs/storage.md "Bounded refit"). The
+  /// returned model is the committed version, built without re-reading it.
   /// @throws RequestError (400 bad CSV naming line and field, 413 too many
   /// samples, 422 no usable slip) and stores nothing then.
   IngestResult IngestStrokes(const std::string& material,
@@ -180,7 +190,9 @@ class FrictionLibrary {
   int LoadBundledData(const std::string& dir);
 
   /// Fits an additional model family (e.g. "lugre") when strokes arrive.
-  /// Gets all strokes of the pair (labelled; the new upload last), the new
+  /// Gets the refit's strokes of the pair (labelled; the new upload last;
+  /// above the ingestor's sample cap a stratified choice of the older
+  /// uploads, see IngestStrokes), the new
   /// upload alone, and the pair's previous model set (nullptr for none).
   /// Returns the family's JSON, or null when the data cannot identify it
   /// (then the previous version of the family, if any, is kept); may set
@@ -210,8 +222,28 @@ class FrictionLibrary {
   void AddModelListener(ModelListener listener);
 
  private:
-  static void PrepareUpload(StrokeData* data,
-                            const SlipLabelOptions& labelling);
+  /// What FitModelSet identified.
+  struct ModelSetFit {
+    FitStatus status = FitStatus::kFailed;
+    std::string why;   ///< eq. (1)'s reason (status not ok)
+    std::string note;  ///< the family fitters' notes, "family: note; ..."
+    ModelSet set;      ///< every family; version and created_at unset
+  };
+  /// THE fit step of an upload: identifies every model family of the pair
+  /// from `strokes` (the ingestor's bounded data, the new upload last):
+  /// eq. (1) with eps (keeping an extended previous model's terms when the
+  /// data has their inputs) on this thread, the registered family fitters on
+  /// a second one, and the previous version's other families carried over.
+  /// Reads only its arguments and fitters_ (no store, no cache).
+  ModelSetFit FitModelSet(const std::string& material,
+                          const std::string& fingertip,
+                          const StrokeData& strokes,
+                          const StrokeData& upload,
+                          const CachedModel* previous,
+                          const SlipLabelOptions& labelling) const;
+  /// Caches a version just committed (made from what was committed).
+  std::shared_ptr<const CachedModel> Publish(const nlohmann::json& doc,
+                                             const ModelRecord& record);
   std::shared_ptr<const CachedModel> Decode(const ModelRecord& record) const;
   void Invalidate(const std::string& material, const std::string& fingertip);
   void Notify(const std::shared_ptr<const CachedModel>& model);
@@ -226,7 +258,9 @@ class FrictionLibrary {
       cache_;  // key: material '\n' fingertip
   // Invalidated entries, served only while the store is unavailable.
   std::unordered_map<std::string, std::shared_ptr<const CachedModel>> stale_;
-  std::mutex ingest_mu_;  // serialises refits so versions follow upload order
+  // Per-pair locks (versions follow upload order within a pair) and the
+  // pairs' parsed uploads.
+  std::unique_ptr<Ingestor> ingestor_;
   std::vector<std::pair<std::string, FamilyFitter>> fitters_;
   std::mutex listeners_mu_;
   std::vector<ModelListener> listeners_;

@@ -102,6 +102,7 @@ struct UploadCommit {
   std::int64_t stroke_id = 0;
   int version = 0;
   bool material_created = false;
+  std::string created_at;  ///< the model version's created_at (ISO-8601 UTC)
 };
 
 /// An API token. Only a hash of its secret is stored.
@@ -163,6 +164,14 @@ class Store {
       const std::string& material, const std::string& fingertip) = 0;
   /// One stroke with its csv.
   virtual std::optional<StrokeRecord> GetStroke(std::int64_t id) = 0;
+  /// Strokes of a pair whose id is above `after_id` (0: all), oldest first,
+  /// in one query; with their csv when `with_csv`, else csv is empty. The
+  /// ingestor loads a pair's history with it once and catches up with it.
+  virtual std::vector<StrokeRecord> ListStrokesAfter(
+      const std::string& material,
+      const std::string& fingertip,
+      std::int64_t after_id,
+      bool with_csv) = 0;
   /// Newest model version of a pair.
   virtual std::optional<ModelRecord> GetLatestModel(
       const std::string& material, const std::string& fingertip) = 0;

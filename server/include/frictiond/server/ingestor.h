@@ -1,0 +1,167 @@
+#pragma once
+/// @file
+/// The stroke ingestor of the service core: per (material, fingertip) pair
+/// one lock and one cache of the pair's parsed, labelled uploads keyed by
+/// stroke id, and the bounded data a refit is given. Transport-free (no
+/// HTTP, LCM or JSON types); FrictionLibrary::IngestStrokes drives it:
+///
+/// @code
+///   Ingestor::PairLock lock = ingestor.Lock(material, fingertip);
+///   FitData data = ingestor.AssembleFitData(lock, labelling, upload);
+///   ... fit on data.strokes, commit stroke + model ...
+///   ingestor.Append(lock, commit.stroke_id, std::move(upload));
+/// @endcode
+///
+/// Cost of an upload: the new samples (parse, label, append) plus a refit on
+/// at most IngestorOptions::fit_sample_cap samples of older uploads. The
+/// pair's history is read from the store once (one query) and kept; each
+/// upload asks the store only for strokes it does not know (one query for
+/// ids, normally empty).
+///
+/// Departure from a refit on everything (docs/storage.md "Bounded refit"):
+/// eq. (1)'s eps quantiles, the slip sigmoid, eps's time model and the
+/// family fitters (LuGre recognition, eq. (2)) need samples, not sufficient
+/// statistics, so the refit gets every older upload while their samples stay
+/// within `fit_sample_cap`, and above the cap a deterministic, stratified
+/// choice of whole older uploads (SelectFitUploads): the history is cut into
+/// equal strata in upload order and the middle upload of each stratum is
+/// taken, so old and new data stay represented and a stroke's time series
+/// stays intact. The new upload is always included whole, last.
+
+#include <atomic>
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "frictiond/estimators/preprocessing.h"
+#include "frictiond/estimators/stroke_data.h"
+#include "frictiond/storage/store.h"
+
+namespace frictiond {
+
+/// Options of the Ingestor.
+struct IngestorOptions {
+  /// Samples of older uploads a refit is given at most (the new upload comes
+  /// on top, whole). Below it a refit sees every stored sample of the pair.
+  std::size_t fit_sample_cap = 4'000;
+  /// Parsed samples kept over all pairs; beyond it the least recently used
+  /// pairs' caches are dropped (reloaded from the store on their next
+  /// upload). The pair being ingested is always kept, so one pair whose
+  /// history is above the cap stays cached while it is the one in use.
+  /// About 80 bytes per sample without covariates (~160 MB at the default).
+  std::size_t cache_sample_cap = 2'000'000;
+  /// Largest upload a stored stroke may be (parser limit).
+  std::size_t max_samples_per_upload = 5'000'000;
+};
+
+/// The data of one refit.
+struct FitData {
+  /// Chosen older uploads (oldest first), then the new upload last; stroke
+  /// ids made distinct by StrokeData::Append.
+  StrokeData strokes;
+  int uploads_stored = 0;          ///< older uploads the pair holds
+  int uploads_used = 0;            ///< of which the refit got
+  std::size_t samples_stored = 0;  ///< samples of the older uploads
+  std::size_t samples_used = 0;    ///< of which the refit got
+};
+
+/// Indices (ascending) of the uploads, of the given sample counts in upload
+/// order, that a refit gets: all when their sum is at most `cap`, else the
+/// middle upload of each of K equal strata, K the largest count whose chosen
+/// uploads fit the cap; when not even one upload fits, the newest one that
+/// does, else the newest one (so the refit may exceed the cap by one older
+/// upload, itself bounded by the upload limit). Deterministic.
+std::vector<std::size_t> SelectFitUploads(
+    const std::vector<std::size_t>& samples, std::size_t cap);
+
+/// Labels a parsed upload and adds CONTRACT.md's derived features; labels,
+/// strokes and derived features are per upload (time gaps, dwell and
+/// distance restart with each upload). Given labels are kept.
+void PrepareUpload(StrokeData* data, const SlipLabelOptions& labelling);
+
+/// Thread-safe. Not copyable or movable.
+class Ingestor {
+ private:
+  struct Pair;
+
+ public:
+  /// Holds one pair's lock: uploads of a pair run one at a time, in the
+  /// order they take it; other pairs proceed in parallel. Movable only.
+  class PairLock {
+   public:
+    PairLock(PairLock&&) noexcept = default;
+    PairLock& operator=(PairLock&&) noexcept = default;
+    const std::string& material() const { return material_; }
+    const std::string& fingertip() const { return fingertip_; }
+
+   private:
+    friend class Ingestor;
+    PairLock(std::shared_ptr<Pair> pair,
+             std::string material,
+             std::string fingertip);
+    std::shared_ptr<Pair> pair_;
+    std::unique_lock<std::mutex> lock_;
+    std::string material_;
+    std::string fingertip_;
+  };
+
+  /// `store` must outlive the ingestor.
+  Ingestor(Store& store, IngestorOptions options);
+  ~Ingestor();
+  Ingestor(const Ingestor&) = delete;
+  Ingestor& operator=(const Ingestor&) = delete;
+
+  const IngestorOptions& options() const { return options_; }
+
+  /// Takes the pair's lock (blocks while another upload of the pair runs).
+  PairLock Lock(const std::string& material, const std::string& fingertip);
+
+  /// The older uploads of the pair (all, or SelectFitUploads' choice above
+  /// the cap) labelled with `labelling`, then `upload` (already prepared
+  /// with the same labelling) last. Loads the pair from the store when its
+  /// cache is empty, was invalidated or used another labelling, else asks
+  /// the store only for strokes it does not know.
+  /// @throws what the store throws (e.g. StoreUnavailable); a stored stroke
+  /// that no longer parses is skipped, as LoadStrokes always did.
+  FitData AssembleFitData(PairLock& lock,
+                          const SlipLabelOptions& labelling,
+                          const StrokeData& upload);
+
+  /// Adds an upload just committed under `stroke_id` (prepared with the
+  /// labelling of the preceding AssembleFitData) to the pair's cache.
+  void Append(PairLock& lock, std::int64_t stroke_id, StrokeData upload);
+
+  /// Drops cached uploads: of one pair; of every pair of `material` when
+  /// `fingertip` is empty; of every pair when both are empty. Does not wait
+  /// for an upload in progress: that pair is marked and reloads from the
+  /// store on its next upload.
+  void Invalidate(const std::string& material, const std::string& fingertip);
+
+  /// Parsed samples cached over all pairs (for tests and metrics).
+  std::size_t cached_samples() const { return cached_samples_.load(); }
+
+ private:
+  void Load(Pair& pair,
+            const std::string& material,
+            const std::string& fingertip,
+            const SlipLabelOptions& labelling);
+  void CatchUp(Pair& pair,
+               const std::string& material,
+               const std::string& fingertip);
+  void Drop(Pair& pair);
+  void EvictBeyondCap(const Pair* keep);
+
+  Store& store_;
+  IngestorOptions options_;
+  std::mutex pairs_mu_;  // guards pairs_ and the use clock
+  std::unordered_map<std::string, std::shared_ptr<Pair>> pairs_;
+  std::uint64_t clock_ = 0;
+  std::atomic<std::size_t> cached_samples_{0};
+};
+
+}  // namespace frictiond

@@ -1,0 +1,259 @@
+#include "frictiond/server/ingestor.h"
+
+#include <algorithm>
+#include <utility>
+
+#include "frictiond/estimators/stroke_csv.h"
+
+namespace frictiond {
+
+namespace {
+
+bool SameLabelling(const SlipLabelOptions& a, const SlipLabelOptions& b) {
+  return a.peak_mm_s == b.peak_mm_s && a.floor_mm_s == b.floor_mm_s &&
+         a.median_window_s == b.median_window_s && a.max_fn_n == b.max_fn_n &&
+         a.max_v_mm_s == b.max_v_mm_s && a.gap_factor == b.gap_factor;
+}
+
+std::string Key(const std::string& material, const std::string& fingertip) {
+  return material + '\n' + fingertip;
+}
+
+}  // namespace
+
+void PrepareUpload(StrokeData* data, const SlipLabelOptions& labelling) {
+  EnsureLabels(data, labelling);
+  AddDerivedFeatures(data, labelling.gap_factor);
+}
+
+std::vector<std::size_t> SelectFitUploads(
+    const std::vector<std::size_t>& samples, std::size_t cap) {
+  const std::size_t n = samples.size();
+  std::size_t total = 0;
+  for (std::size_t s : samples) total += s;
+  std::vector<std::size_t> out;
+  if (total <= cap) {
+    out.resize(n);
+    for (std::size_t i = 0; i < n; ++i) out[i] = i;
+    return out;
+  }
+  // K strata of equal upload count; the middle upload of each. Start from
+  // the count the mean upload size allows and step down until it fits.
+  auto pick = [&](std::size_t k, std::size_t* sum) {
+    std::vector<std::size_t> idx;
+    idx.reserve(k);
+    *sum = 0;
+    for (std::size_t j = 0; j < k; ++j) {
+      const std::size_t i = ((2 * j + 1) * n) / (2 * k);
+      idx.push_back(i);
+      *sum += samples[i];
+    }
+    return idx;
+  };
+  const std::size_t mean = std::max<std::size_t>(total / n, 1);
+  std::size_t k = std::clamp<std::size_t>(cap / mean, 1, n);
+  for (; k > 1; --k) {
+    std::size_t sum = 0;
+    out = pick(k, &sum);
+    if (sum <= cap) break;
+  }
+  if (k <= 1) {
+    // One upload: the newest one that fits, else the newest (whole, even
+    // above the cap: a refit is never left with the new upload alone).
+    std::size_t best = n - 1;
+    for (std::size_t i = n; i-- > 0;) {
+      if (samples[i] <= cap) {
+        best = i;
+        break;
+      }
+    }
+    out = {best};
+  }
+  return out;
+}
+
+struct Ingestor::Pair {
+  std::mutex mu;                   // the pair lock
+  std::atomic<bool> stale{false};  // set by Invalidate, cleared on use
+  std::uint64_t last_use = 0;      // guarded by pairs_mu_
+  // Guarded by mu:
+  bool loaded = false;
+  SlipLabelOptions labelling;
+  std::map<std::int64_t, StrokeData> uploads;  // prepared, by stroke id
+  std::size_t samples = 0;
+  std::int64_t known_through = 0;  // every stroke id of the pair <= it is known
+};
+
+Ingestor::PairLock::PairLock(std::shared_ptr<Pair> pair,
+                             std::string material,
+                             std::string fingertip)
+    : pair_(std::move(pair)),
+      lock_(pair_->mu),
+      material_(std::move(material)),
+      fingertip_(std::move(fingertip)) {}
+
+Ingestor::Ingestor(Store& store, IngestorOptions options)
+    : store_(store), options_(options) {}
+
+Ingestor::~Ingestor() = default;
+
+Ingestor::PairLock Ingestor::Lock(const std::string& material,
+                                  const std::string& fingertip) {
+  std::shared_ptr<Pair> pair;
+  {
+    std::lock_guard<std::mutex> lock(pairs_mu_);
+    auto& slot = pairs_[Key(material, fingertip)];
+    if (!slot) slot = std::make_shared<Pair>();
+    slot->last_use = ++clock_;
+    pair = slot;
+  }
+  return PairLock(std::move(pair), material, fingertip);
+}
+
+void Ingestor::Drop(Pair& pair) {
+  cached_samples_ -= pair.samples;
+  pair.uploads.clear();
+  pair.samples = 0;
+  pair.known_through = 0;
+  pair.loaded = false;
+}
+
+void Ingestor::Load(Pair& pair,
+                    const std::string& material,
+                    const std::string& fingertip,
+                    const SlipLabelOptions& labelling) {
+  Drop(pair);
+  const StrokeCsvOptions csv_options{options_.max_samples_per_upload, 64};
+  for (StrokeRecord& r :
+       store_.ListStrokesAfter(material, fingertip, 0, /*with_csv=*/true)) {
+    pair.known_through = std::max(pair.known_through, r.id);
+    StrokeData d;
+    try {
+      d = ParseStrokeCsv(r.csv, csv_options);
+    } catch (const StrokeCsvError&) {
+      continue;  // validated when stored; unreadable now: skip it
+    }
+    PrepareUpload(&d, labelling);
+    pair.samples += d.size();
+    cached_samples_ += d.size();
+    pair.uploads.emplace(r.id, std::move(d));
+  }
+  pair.labelling = labelling;
+  pair.loaded = true;
+}
+
+void Ingestor::CatchUp(Pair& pair,
+                       const std::string& material,
+                       const std::string& fingertip) {
+  // Strokes another writer (a fleet daemon) stored: ids only, then the
+  // unknown ones. Normally it lists only the previous upload of this daemon.
+  const StrokeCsvOptions csv_options{options_.max_samples_per_upload, 64};
+  for (const StrokeRecord& r : store_.ListStrokesAfter(
+           material, fingertip, pair.known_through, /*with_csv=*/false)) {
+    pair.known_through = std::max(pair.known_through, r.id);
+    if (pair.uploads.count(r.id)) continue;
+    auto full = store_.GetStroke(r.id);
+    if (!full) continue;
+    StrokeData d;
+    try {
+      d = ParseStrokeCsv(full->csv, csv_options);
+    } catch (const StrokeCsvError&) {
+      continue;
+    }
+    PrepareUpload(&d, pair.labelling);
+    pair.samples += d.size();
+    cached_samples_ += d.size();
+    pair.uploads.emplace(r.id, std::move(d));
+  }
+}
+
+FitData Ingestor::AssembleFitData(PairLock& lock,
+                                  const SlipLabelOptions& labelling,
+                                  const StrokeData& upload) {
+  Pair& pair = *lock.pair_;
+  if (pair.stale.exchange(false) || !pair.loaded ||
+      !SameLabelling(pair.labelling, labelling)) {
+    Load(pair, lock.material(), lock.fingertip(), labelling);
+  } else {
+    CatchUp(pair, lock.material(), lock.fingertip());
+  }
+  EvictBeyondCap(&pair);
+  FitData out;
+  std::vector<const StrokeData*> uploads;
+  std::vector<std::size_t> sizes;
+  uploads.reserve(pair.uploads.size());
+  sizes.reserve(pair.uploads.size());
+  for (const auto& [id, d] : pair.uploads) {
+    uploads.push_back(&d);
+    sizes.push_back(d.size());
+  }
+  out.uploads_stored = static_cast<int>(uploads.size());
+  out.samples_stored = pair.samples;
+  std::size_t reserve = upload.size();
+  const std::vector<std::size_t> chosen =
+      SelectFitUploads(sizes, options_.fit_sample_cap);
+  for (std::size_t i : chosen) reserve += sizes[i];
+  out.strokes.Reserve(reserve);
+  for (std::size_t i : chosen) {
+    out.strokes.Append(*uploads[i]);
+    out.samples_used += sizes[i];
+  }
+  out.uploads_used = static_cast<int>(chosen.size());
+  if (out.strokes.empty()) {
+    out.strokes = upload;  // first upload of the pair: no merge needed
+  } else {
+    out.strokes.Append(upload);
+  }
+  return out;
+}
+
+void Ingestor::Append(PairLock& lock,
+                      std::int64_t stroke_id,
+                      StrokeData upload) {
+  Pair& pair = *lock.pair_;
+  if (!pair.loaded) return;  // nothing cached: the next upload loads it all
+  const std::size_t n = upload.size();
+  if (pair.uploads.emplace(stroke_id, std::move(upload)).second) {
+    pair.samples += n;
+    cached_samples_ += n;
+  }
+  EvictBeyondCap(&pair);
+}
+
+void Ingestor::Invalidate(const std::string& material,
+                          const std::string& fingertip) {
+  const std::string prefix = material + '\n';
+  std::lock_guard<std::mutex> lock(pairs_mu_);
+  for (auto& [key, pair] : pairs_) {
+    const bool match =
+        material.empty() ||
+        (fingertip.empty() ? key.compare(0, prefix.size(), prefix) == 0
+                           : key == Key(material, fingertip));
+    if (!match) continue;
+    pair->stale = true;
+    // Free the memory now unless an upload of the pair runs (it reloads).
+    std::unique_lock<std::mutex> pair_lock(pair->mu, std::try_to_lock);
+    if (pair_lock.owns_lock()) Drop(*pair);
+  }
+}
+
+void Ingestor::EvictBeyondCap(const Pair* keep) {
+  if (cached_samples_.load() <= options_.cache_sample_cap) return;
+  // Least recently used first; a pair whose upload is running is skipped.
+  std::vector<std::pair<std::uint64_t, std::shared_ptr<Pair>>> order;
+  {
+    std::lock_guard<std::mutex> lock(pairs_mu_);
+    for (auto& [key, pair] : pairs_)
+      if (pair.get() != keep) order.emplace_back(pair->last_use, pair);
+  }
+  std::sort(order.begin(), order.end(), [](const auto& a, const auto& b) {
+    return a.first < b.first;
+  });
+  for (auto& [use, pair] : order) {
+    if (cached_samples_.load() <= options_.cache_sample_cap) break;
+    std::unique_lock<std::mutex> lock(pair->mu, std::try_to_lock);
+    if (lock.owns_lock()) Drop(*pair);
+  }
+}
+
+}  // namespace frictiond
