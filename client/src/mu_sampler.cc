@@ -70,9 +70,10 @@ MuSampler::MuSampler(const StochasticFrictionModel& model) : model_(model) {
   }
   if (model_.eps_scale) {
     const std::string& in = model_.eps_scale->input;
-    scale_source_ = in == "fn_n"     ? ScaleSource::kFn
-                    : in == "v_mm_s" ? ScaleSource::kV
-                                     : ScaleSource::kConstant;
+    scale_source_ = in == "fn_n"           ? ScaleSource::kFn
+                    : in == "v_mm_s"       ? ScaleSource::kV
+                    : SplitProductName(in) ? ScaleSource::kGeneral
+                                           : ScaleSource::kConstant;
     scale_constant_ = CalcEpsScaleFactor(model_, {});
   }
   q_lo95_ = frictiond::CalcEpsQuantile(m, 0.025);
@@ -221,6 +222,8 @@ double MuSampler::CalcEpsScale(double fn_n, double v_mm_s) const {
       return model_.eps_scale->ScaleFactor(v_mm_s);
     case ScaleSource::kConstant:
       return scale_constant_;
+    case ScaleSource::kGeneral:
+      return CalcEpsScaleFactor(model_, {{"fn_n", fn_n}, {"v_mm_s", v_mm_s}});
   }
   return 1.0;
 }

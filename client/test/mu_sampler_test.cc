@@ -107,16 +107,18 @@ StochasticFrictionModel MakeScaledModel(const std::string& scale_input) {
   EpsScaleModel s;
   s.input = scale_input;
   s.log_sigma_intercept = std::log(0.03);
-  s.log_sigma_slope = scale_input == "temp_c" ? 0.05 : 0.3;
-  s.x_min = m.inputs.at(scale_input).min;
-  s.x_max = m.inputs.at(scale_input).max;
+  s.log_sigma_slope = scale_input == "temp_c"        ? 0.05
+                      : scale_input == "fn_n*v_mm_s" ? 0.01
+                                                     : 0.3;
+  s.x_min = m.inputs.count(scale_input) ? m.inputs.at(scale_input).min : 1.0;
+  s.x_max = m.inputs.count(scale_input) ? m.inputs.at(scale_input).max : 200.0;
   s.sigma_ref = 0.08;
   m.eps_scale = s;
   return m;
 }
 
 TEST(MuSamplerTest, ScaledInteractionModelEqualsPredictMuBitForBit) {
-  for (const std::string input : {"fn_n", "v_mm_s", "temp_c"}) {
+  for (const std::string input : {"fn_n", "v_mm_s", "temp_c", "fn_n*v_mm_s"}) {
     const StochasticFrictionModel model = MakeScaledModel(input);
     const MuSampler sampler(model);
     std::mt19937_64 gen(17);
@@ -134,15 +136,21 @@ TEST(MuSamplerTest, ScaledInteractionModelEqualsPredictMuBitForBit) {
                 CalcEpsScaleFactor(model, {{"fn_n", f}, {"v_mm_s", s}}));
     }
   }
-  // The interval scales with the eps scale: wider at high Fn.
-  const StochasticFrictionModel model = MakeScaledModel("fn_n");
+  // The interval scales with the eps scale (coefficients known exactly
+  // here): exp(0.3 x 3.3) = 2.7 times wider at 3.9 N than at 0.6 N.
+  StochasticFrictionModel model = MakeScaledModel("fn_n");
+  model.mu.P_beta.setZero();
   const MuSampler sampler(model);
   const MuPoint lo = sampler.CalcPrediction(0.6, 20.0);
   const MuPoint hi = sampler.CalcPrediction(3.9, 20.0);
-  EXPECT_GT(hi.hi95 - hi.lo95, 2.0 * (lo.hi95 - lo.lo95));
+  EXPECT_NEAR((hi.hi95 - hi.lo95) / (lo.hi95 - lo.lo95),
+              std::exp(0.3 * (3.9 - 0.6)),
+              1e-9);
   // Draws carry the scale: the 0.9 draw minus the mean is s * q(0.9).
-  EXPECT_EQ(sampler.Draw(3.0, 20.0, 0.9) - sampler.CalcMean(3.0, 20.0),
-            model.eps_scale->ScaleFactor(3.0) * CalcEpsQuantile(model.mu, 0.9));
+  EXPECT_NEAR(
+      sampler.Draw(3.0, 20.0, 0.9) - sampler.CalcMean(3.0, 20.0),
+      model.eps_scale->ScaleFactor(3.0) * CalcEpsQuantile(model.mu, 0.9),
+      1e-12);
 }
 
 TEST(MuSamplerTest, EpsQuantileEqualsEstimatorBitForBit) {

@@ -108,8 +108,9 @@ class MuSampler {
   std::vector<Source> source_;    // per term
   std::vector<double> constant_;  // per term: its x when kConstant,
                                   // the other factor for k*Times
-  // Where the eps scale's input comes from (kNone: no scale model).
-  enum class ScaleSource { kNone, kFn, kV, kConstant };
+  // Where the eps scale's input comes from (kNone: no scale model;
+  // kGeneral: a product column, CalcEpsScaleFactor at (fn_n, v_mm_s)).
+  enum class ScaleSource { kNone, kFn, kV, kConstant, kGeneral };
   ScaleSource scale_source_ = ScaleSource::kNone;
   double scale_constant_ = 1.0;         // the factor when kConstant
   double q_lo95_ = 0.0, q_hi95_ = 0.0;  // eps quantiles at 0.025, 0.975
