@@ -46,12 +46,35 @@ MuSampler::MuSampler(const StochasticFrictionModel& model) : model_(model) {
       source_.push_back(t.kind == TermKind::kLinear ? Source::kVLinear
                                                     : Source::kV);
       constant_.push_back(0.0);
+    } else if (std::string a, b;
+               SplitProductName(t.input, &a, &b) &&
+               (a == "fn_n" || a == "v_mm_s" || b == "fn_n" || b == "v_mm_s")) {
+      // A product column (eps_scale.h) of fn_n or v_mm_s: PredictMu's
+      // ResolveInputValue, the other factor at its mean when not fn/v.
+      const bool has_fn = a == "fn_n" || b == "fn_n";
+      const bool has_v = a == "v_mm_s" || b == "v_mm_s";
+      if (has_fn && has_v) {
+        source_.push_back(Source::kFnV);
+        constant_.push_back(0.0);
+      } else {
+        const std::string& other = (a == "fn_n" || a == "v_mm_s") ? b : a;
+        source_.push_back(has_fn ? Source::kFnTimes : Source::kVTimes);
+        constant_.push_back(ResolveInputValue(model_, {}, other));
+      }
     } else {
-      const auto it = model_.inputs.find(t.input);
+      // Any other input at its fitted mean (a product of two other
+      // columns: the product of their means), as PredictMu.
       source_.push_back(Source::kConstant);
-      constant_.push_back(
-          t.Eval(it != model_.inputs.end() ? it->second.mean : 0.0));
+      constant_.push_back(t.Eval(ResolveInputValue(model_, {}, t.input)));
     }
+  }
+  if (model_.eps_scale) {
+    const std::string& in = model_.eps_scale->input;
+    scale_source_ = in == "fn_n"           ? ScaleSource::kFn
+                    : in == "v_mm_s"       ? ScaleSource::kV
+                    : SplitProductName(in) ? ScaleSource::kGeneral
+                                           : ScaleSource::kConstant;
+    scale_constant_ = CalcEpsScaleFactor(model_, {});
   }
   q_lo95_ = frictiond::CalcEpsQuantile(m, 0.025);
   q_hi95_ = frictiond::CalcEpsQuantile(m, 0.975);
@@ -100,6 +123,15 @@ bool MuSampler::FillRegressors(double fn_n, double v_mm_s, double* x) const {
         break;
       case Source::kConstant:
         x[k] = constant_[k];
+        break;
+      case Source::kFnV:
+        x[k] = m.terms[k].Eval(fn_n * v_mm_s);
+        break;
+      case Source::kFnTimes:
+        x[k] = m.terms[k].Eval(fn_n * constant_[k]);
+        break;
+      case Source::kVTimes:
+        x[k] = m.terms[k].Eval(v_mm_s * constant_[k]);
         break;
     }
   }
@@ -163,11 +195,37 @@ MuPoint MuSampler::CalcPrediction(double fn_n, double v_mm_s) const {
     pxv.noalias() = m.P_beta * xv;
     var_param = std::max(0.0, xv.dot(pxv));
   }
-  out.sigma = std::sqrt(m.sigma_eps * m.sigma_eps + var_param);
-  const double widen = m.sigma_eps > 0 ? out.sigma / m.sigma_eps : 1.0;
-  out.lo95 = out.mu + widen * q_lo95_;
-  out.hi95 = out.mu + widen * q_hi95_;
+  if (scale_source_ == ScaleSource::kNone) {
+    out.sigma = std::sqrt(m.sigma_eps * m.sigma_eps + var_param);
+    const double widen = m.sigma_eps > 0 ? out.sigma / m.sigma_eps : 1.0;
+    out.lo95 = out.mu + widen * q_lo95_;
+    out.hi95 = out.mu + widen * q_hi95_;
+    return out;
+  }
+  // Heteroscedastic eps: PredictMu's arithmetic with the scale s.
+  const double s = CalcEpsScale(fn_n, v_mm_s);
+  const double sigma_x = s * m.sigma_eps;
+  out.sigma = std::sqrt(sigma_x * sigma_x + var_param);
+  const double widen = sigma_x > 0 ? out.sigma / sigma_x : 1.0;
+  out.lo95 = out.mu + widen * s * q_lo95_;
+  out.hi95 = out.mu + widen * s * q_hi95_;
   return out;
+}
+
+double MuSampler::CalcEpsScale(double fn_n, double v_mm_s) const {
+  switch (scale_source_) {
+    case ScaleSource::kNone:
+      return 1.0;
+    case ScaleSource::kFn:
+      return model_.eps_scale->ScaleFactor(fn_n);
+    case ScaleSource::kV:
+      return model_.eps_scale->ScaleFactor(v_mm_s);
+    case ScaleSource::kConstant:
+      return scale_constant_;
+    case ScaleSource::kGeneral:
+      return CalcEpsScaleFactor(model_, {{"fn_n", fn_n}, {"v_mm_s", v_mm_s}});
+  }
+  return 1.0;
 }
 
 double MuSampler::CalcEpsQuantile(double p) const {
@@ -237,8 +295,9 @@ void SampleMuEpisodes(const MuSampler& sampler,
         }
       }
       const double p = NormalCdf(offset + ar_scale * w);
-      row[t] = sampler.CalcMean(fn_n.at(env, t), v_mm_s.at(env, t)) +
-               sampler.CalcEpsQuantile(p);
+      const double fn = fn_n.at(env, t), v = v_mm_s.at(env, t);
+      row[t] = sampler.CalcMean(fn, v) +
+               sampler.CalcEpsScale(fn, v) * sampler.CalcEpsQuantile(p);
     }
   }
 }

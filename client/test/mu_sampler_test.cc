@@ -86,6 +86,73 @@ TEST(MuSamplerTest, PredictionEqualsPredictMuBitForBit) {
   }
 }
 
+// The extended model plus interaction terms (product columns of fn_n,
+// v_mm_s and temp_c) and an eps scale in `scale_input` (eps_scale.h).
+StochasticFrictionModel MakeScaledModel(const std::string& scale_input) {
+  StochasticFrictionModel m = MakeModel(true);
+  RegressionModel& r = m.mu;
+  const std::vector<std::string> extra = {
+      "fn_n*v_mm_s", "temp_c*fn_n", "v_mm_s*temp_c", "log(fn_n*v_mm_s)"};
+  const std::vector<double> beta_extra = {-0.0004, 0.0013, 0.0002, 0.01};
+  const Eigen::Index n0 = r.beta.size();
+  const Eigen::Index n = n0 + static_cast<Eigen::Index>(extra.size());
+  r.beta.conservativeResize(n);
+  for (std::size_t k = 0; k < extra.size(); ++k) {
+    r.terms.push_back(Term::Parse(extra[k]));
+    r.beta(n0 + static_cast<Eigen::Index>(k)) = beta_extra[k];
+  }
+  Eigen::MatrixXd P = Eigen::MatrixXd::Identity(n, n) * 1e-5;
+  P.topLeftCorner(n0, n0) = r.P_beta;
+  r.P_beta = P;
+  EpsScaleModel s;
+  s.input = scale_input;
+  s.log_sigma_intercept = std::log(0.03);
+  s.log_sigma_slope = scale_input == "temp_c"        ? 0.05
+                      : scale_input == "fn_n*v_mm_s" ? 0.01
+                                                     : 0.3;
+  s.x_min = m.inputs.count(scale_input) ? m.inputs.at(scale_input).min : 1.0;
+  s.x_max = m.inputs.count(scale_input) ? m.inputs.at(scale_input).max : 200.0;
+  s.sigma_ref = 0.08;
+  m.eps_scale = s;
+  return m;
+}
+
+TEST(MuSamplerTest, ScaledInteractionModelEqualsPredictMuBitForBit) {
+  for (const std::string input : {"fn_n", "v_mm_s", "temp_c", "fn_n*v_mm_s"}) {
+    const StochasticFrictionModel model = MakeScaledModel(input);
+    const MuSampler sampler(model);
+    std::mt19937_64 gen(17);
+    std::uniform_real_distribution<double> fn(0.01, 6.0), v(0.0, 90.0);
+    for (int i = 0; i < 20000; ++i) {
+      const double f = fn(gen), s = v(gen);
+      const MuPrediction want = PredictMu(model, f, s);
+      const MuPoint got = sampler.CalcPrediction(f, s);
+      ASSERT_EQ(sampler.CalcMean(f, s), want.mu) << input << " " << f;
+      ASSERT_EQ(got.mu, want.mu) << input << " " << f << " " << s;
+      ASSERT_EQ(got.sigma, want.sigma) << input << " " << f << " " << s;
+      ASSERT_EQ(got.lo95, want.lo95) << input << " " << f << " " << s;
+      ASSERT_EQ(got.hi95, want.hi95) << input << " " << f << " " << s;
+      ASSERT_EQ(sampler.CalcEpsScale(f, s),
+                CalcEpsScaleFactor(model, {{"fn_n", f}, {"v_mm_s", s}}));
+    }
+  }
+  // The interval scales with the eps scale (coefficients known exactly
+  // here): exp(0.3 x 3.3) = 2.7 times wider at 3.9 N than at 0.6 N.
+  StochasticFrictionModel model = MakeScaledModel("fn_n");
+  model.mu.P_beta.setZero();
+  const MuSampler sampler(model);
+  const MuPoint lo = sampler.CalcPrediction(0.6, 20.0);
+  const MuPoint hi = sampler.CalcPrediction(3.9, 20.0);
+  EXPECT_NEAR((hi.hi95 - hi.lo95) / (lo.hi95 - lo.lo95),
+              std::exp(0.3 * (3.9 - 0.6)),
+              1e-9);
+  // Draws carry the scale: the 0.9 draw minus the mean is s * q(0.9).
+  EXPECT_NEAR(
+      sampler.Draw(3.0, 20.0, 0.9) - sampler.CalcMean(3.0, 20.0),
+      model.eps_scale->ScaleFactor(3.0) * CalcEpsQuantile(model.mu, 0.9),
+      1e-12);
+}
+
 TEST(MuSamplerTest, EpsQuantileEqualsEstimatorBitForBit) {
   const StochasticFrictionModel model = MakeModel(false);
   const MuSampler sampler(model);

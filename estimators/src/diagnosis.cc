@@ -175,14 +175,8 @@ void AddProductColumns(StrokeData* data,
       kMaxProductValues / std::max<double>(1.0, data->size()));
   if (pairs.size() > max_pairs) pairs.resize(max_pairs);
   for (const auto& [x, y] : pairs) {
-    const std::string name = x + "*" + y;
-    if (data->FindCovariate(name)) continue;
-    const std::vector<double>& cx = *data->Column(x);
-    const std::vector<double>& cy = *data->Column(y);
-    std::vector<double> p(data->size());
-    for (std::size_t i = 0; i < p.size(); ++i) p[i] = cx[i] * cy[i];
-    data->covariate_names.push_back(name);
-    data->covariates.push_back(std::move(p));
+    // The one rule for computed columns (eps_scale.h).
+    AddComputedColumn(data, x + "*" + y);
   }
 }
 

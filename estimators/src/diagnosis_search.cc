@@ -20,15 +20,6 @@
 
 namespace frictiond {
 
-double EpsScaleModel::Sigma(double x) const {
-  const double xc = std::min(std::max(x, x_min), x_max);
-  return std::exp(log_sigma_intercept + log_sigma_slope * xc);
-}
-
-double EpsScaleModel::ScaleFactor(double x) const {
-  return sigma_ref > 0 ? Sigma(x) / sigma_ref : 1.0;
-}
-
 namespace diagnosis_internal {
 namespace {
 
@@ -384,52 +375,16 @@ DiagnosedModel SummarizeModel(const std::string& name,
 // ---------------------------------------------------------------------------
 // Spread: does the scale of eps depend on an input or column?
 
-/// log-linear scale fit: log|r| ~ a + b z on `idx` (least squares), then
-/// the level calibrated so that mean(r^2 / sigma(z)^2) = 1.
+/// log-linear scale fit (eps_scale.h); ok false when not identifiable.
 struct ScaleFit {
-  double a = 0.0, b = 0.0, z_lo = 0.0, z_hi = 0.0, sigma0 = 0.0;
+  EpsScaleModel m;
   bool ok = false;
-  double Sigma(double z) const {
-    return std::exp(a + b * std::min(std::max(z, z_lo), z_hi));
-  }
+  double Sigma(double z) const { return m.Sigma(z); }
 };
 
 ScaleFit FitScale(const std::vector<double>& r, const std::vector<double>& z) {
   ScaleFit f;
-  const std::size_t n = r.size();
-  if (n < 10) return f;
-  double ss = 0.0;
-  for (double x : r) ss += x * x;
-  f.sigma0 = std::sqrt(ss / n);
-  if (!(f.sigma0 > 0)) return f;
-  const double floor = 1e-3 * f.sigma0;
-  std::vector<double> zs = z;
-  std::sort(zs.begin(), zs.end());
-  f.z_lo = SortedQuantile(zs, 0.01);
-  f.z_hi = SortedQuantile(zs, 0.99);
-  if (!(f.z_hi > f.z_lo)) return f;
-  double mz = 0, ml = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    mz += std::min(std::max(z[i], f.z_lo), f.z_hi);
-    ml += std::log(std::max(std::fabs(r[i]), floor));
-  }
-  mz /= n, ml /= n;
-  double szz = 0, szl = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const double dz = std::min(std::max(z[i], f.z_lo), f.z_hi) - mz;
-    szz += dz * dz;
-    szl += dz * (std::log(std::max(std::fabs(r[i]), floor)) - ml);
-  }
-  if (!(szz > 0)) return f;
-  f.b = szl / szz;
-  f.a = ml - f.b * mz;
-  double c = 0.0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const double s = f.Sigma(z[i]);
-    c += r[i] * r[i] / (s * s);
-  }
-  f.a += 0.5 * std::log(std::max(1e-300, c / n));
-  f.ok = std::isfinite(f.a) && std::isfinite(f.b);
+  f.ok = FitEpsScaleModel(r, z, "", &f.m);
   return f;
 }
 
@@ -501,7 +456,7 @@ std::vector<SpreadCandidateEval> EvaluateSpread(
         const double re = res[o](e);
         const double zr = (*col)[outer.rows[e]];
         const double g =
-            GaussLogPdf(re, f.Sigma(zr)) - GaussLogPdf(re, f.sigma0);
+            GaussLogPdf(re, f.Sigma(zr)) - GaussLogPdf(re, f.m.sigma_ref);
         ev.stroke_ll_gain[outer.stroke_of_entry[e]] += g;
         total += g;
       }
@@ -799,22 +754,20 @@ DiagnosisResult RunDiagnosis(const StrokeData& data,
         f.alternatives.push_back(std::move(a));
       }
       if (fit.ok) {
-        EpsScaleModel scale;
+        EpsScaleModel scale = fit.m;
         scale.input = s.cause;
-        scale.log_sigma_intercept = fit.a + level;
-        scale.log_sigma_slope = fit.b;
-        scale.x_min = fit.z_lo;
-        scale.x_max = fit.z_hi;
+        scale.log_sigma_intercept += level;
         scale.sigma_ref = result.extended.sigma_eps;
-        const double s_lo = scale.Sigma(fit.z_lo), s_hi = scale.Sigma(fit.z_hi);
-        f.effect = "the spread of eps " +
-                   std::string(fit.b > 0 ? "grows" : "shrinks") + " with " +
-                   s.cause + ": sigma_eps " + Num(s_lo) + " at " + s.cause +
-                   " = " + Num(fit.z_lo) + " and " + Num(s_hi) + " at " +
-                   Num(fit.z_hi) + " " + UnitOf(s.cause) +
-                   " (constant model: " + Num(result.extended.sigma_eps) +
-                   "); held-out log-likelihood +" + Num(s.ll_gain) +
-                   " nats/sample";
+        const double s_lo = scale.Sigma(fit.m.x_min),
+                     s_hi = scale.Sigma(fit.m.x_max);
+        f.effect =
+            "the spread of eps " +
+            std::string(fit.m.log_sigma_slope > 0 ? "grows" : "shrinks") +
+            " with " + s.cause + ": sigma_eps " + Num(s_lo) + " at " + s.cause +
+            " = " + Num(fit.m.x_min) + " and " + Num(s_hi) + " at " +
+            Num(fit.m.x_max) + " " + UnitOf(s.cause) +
+            " (constant model: " + Num(result.extended.sigma_eps) +
+            "); held-out log-likelihood +" + Num(s.ll_gain) + " nats/sample";
         result.extended.eps_scale = scale;
       } else {
         f.effect = "the spread of eps depends on " + s.cause;

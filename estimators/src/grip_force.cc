@@ -131,8 +131,21 @@ void Regressors(const StochasticFrictionModel& model,
       continue;
     }
     double value = 0.0;
+    std::string f1, f2;
     if (t.input == "v_mm_s") {
       value = v_mm_s;
+    } else if (SplitProductName(t.input, &f1, &f2)) {
+      // A product column "x*y" (an interaction, eps_scale.h) from its
+      // factors at this Fn and v (others at their means).
+      auto at = [&](double fn) {
+        return t.Eval(ResolveInputValue(
+            model, {{"fn_n", fn}, {"v_mm_s", v_mm_s}}, t.input));
+      };
+      (*x)(k) = at(fn_n);
+      (*dx)(k) = f1 == "fn_n" || f2 == "fn_n"
+                     ? (at(fn_n + h) - at(fn_n - h)) / (2 * h)
+                     : 0.0;
+      continue;
     } else {
       auto it = model.inputs.find(t.input);
       value = it != model.inputs.end() ? it->second.mean : 0.0;
@@ -140,6 +153,23 @@ void Regressors(const StochasticFrictionModel& model,
     (*x)(k) = t.Eval(value);
     (*dx)(k) = 0.0;
   }
+}
+
+// eps scale factor at (Fn, v) (exactly 1 without a scale model) and its
+// derivative in Fn.
+double ScaleAt(const StochasticFrictionModel& model,
+               double fn_n,
+               double v_mm_s,
+               double* d_dfn = nullptr) {
+  auto at = [&](double fn) {
+    return CalcEpsScaleFactor(model, {{"fn_n", fn}, {"v_mm_s", v_mm_s}});
+  };
+  const double s = at(fn_n);
+  if (d_dfn) {
+    const double h = 1e-6 * std::max(1.0, std::fabs(fn_n));
+    *d_dfn = model.eps_scale ? (at(fn_n + h) - at(fn_n - h)) / (2 * h) : 0.0;
+  }
+  return s;
 }
 
 // Coefficient covariance, rescaled to the stroke-clustered standard errors
@@ -199,7 +229,9 @@ double CalcHoldSlipProbability(const StochasticFrictionModel& model,
   Regressors(model, fn_n, options.v_mm_s, &x, &dx);
   const double mean =
       model.mu.beta.size() == x.size() ? model.mu.beta.dot(x) : 0.0;
-  const double u = load_n / fn_n - mean;  // slip when eps < u
+  double u = load_n / fn_n - mean;  // slip when eps < u
+  // Heteroscedastic eps: the stored distribution is of eps / s(Fn, v).
+  if (model.eps_scale) u /= ScaleAt(model, fn_n, options.v_mm_s);
   double p = CalcEpsCdfExtended(model.mu, u, t);
   p = std::clamp(p, 1e-300, 1.0 - 1e-16);
   return HoldProbabilityFromInstant(p, t, options.hold_s);
@@ -234,47 +266,80 @@ GripForce CalcGripForce(const StochasticFrictionModel& model,
   const double c =
       CalcHoldCrossingLevel(risk, g.hold_samples, t.phi, t.offset_fraction);
   g.instant_risk = g.hold_samples == 1 ? risk : NormalCdf(c);
+  // u: the eps quantile at the instant risk. With an eps scale model the
+  // stored quantile is of eps / s(Fn, v), so (*) reads
+  //   Fn * (x(Fn)' beta + s(Fn, v) u) = load_n
+  // (the scale at the answer's own Fn: eps_scale.h).
   const double u = CalcEpsQuantileExtended(model.mu, g.instant_risk, t);
+  const bool scaled = model.eps_scale.has_value();
   // Solve (*) Fn (x(Fn)' beta + u) = load by Newton from the linear answer
   // (exact for eq. (1)'s linear fn_n term; general for other Fn terms).
   const RegressionModel& m = model.mu;
   Eigen::VectorXd x, dx;
   auto residual = [&](double fn, double* slope) {
     Regressors(model, fn, options.v_mm_s, &x, &dx);
-    const double mu = m.beta.dot(x) + u;
-    *slope = mu + fn * m.beta.dot(dx);
+    if (!scaled) {
+      const double mu = m.beta.dot(x) + u;
+      *slope = mu + fn * m.beta.dot(dx);
+      return fn * mu - load_n;
+    }
+    double ds = 0.0;
+    const double sc = ScaleAt(model, fn, options.v_mm_s, &ds);
+    const double mu = m.beta.dot(x) + sc * u;
+    *slope = mu + fn * (m.beta.dot(dx) + ds * u);
     return fn * mu - load_n;
   };
-  // Quadratic start (linear in Fn).
+  // Quadratic start (linear in Fn) for an eps quantile uq held fixed.
   const int k2 = m.FindTerm("fn_n");
   const double b2 = k2 >= 0 ? m.beta(k2) : 0.0;
-  Regressors(model, 0.0, options.v_mm_s, &x, &dx);
-  const double a0 = m.beta.dot(x) + u;  // mu at Fn = 0
-  double fn = 0.0;
-  if (std::fabs(b2) < 1e-12) {
-    if (!(a0 > 0)) {
-      g.status = GripForceStatus::kUnattainable;
-      g.why = "the " + std::to_string(g.instant_risk) + " quantile of mu is " +
-              std::to_string(a0) + " (<= 0): no grip holds";
-      return g;
+  auto quadratic_start = [&](double uq, double* fn_out) {
+    Regressors(model, 0.0, options.v_mm_s, &x, &dx);
+    const double a0 = m.beta.dot(x) + uq;  // mu at Fn = 0
+    if (std::fabs(b2) < 1e-12) {
+      if (!(a0 > 0)) {
+        g.status = GripForceStatus::kUnattainable;
+        g.why = "the " + std::to_string(g.instant_risk) +
+                " quantile of mu is " + std::to_string(a0) +
+                " (<= 0): no grip holds";
+        return false;
+      }
+      *fn_out = load_n / a0;
+      return true;
     }
-    fn = load_n / a0;
-  } else {
     const double disc = a0 * a0 + 4 * b2 * load_n;
     if (disc < 0) {
       g.status = GripForceStatus::kUnattainable;
       g.why = "mu falls with Fn too fast: Fn*mu(Fn) peaks at " +
               std::to_string(-a0 * a0 / (4 * b2)) + " N, below the load";
-      return g;
+      return false;
     }
-    const double s = std::sqrt(disc);
-    fn = std::numeric_limits<double>::infinity();
-    for (double r : {(-a0 + s) / (2 * b2), (-a0 - s) / (2 * b2)})
-      if (r > 0 && r < fn) fn = r;
-    if (!std::isfinite(fn)) {
+    const double sq = std::sqrt(disc);
+    double best = std::numeric_limits<double>::infinity();
+    for (double r : {(-a0 + sq) / (2 * b2), (-a0 - sq) / (2 * b2)})
+      if (r > 0 && r < best) best = r;
+    if (!std::isfinite(best)) {
       g.status = GripForceStatus::kUnattainable;
       g.why = "no positive normal force holds the load at this risk";
-      return g;
+      return false;
+    }
+    *fn_out = best;
+    return true;
+  };
+  double fn = 0.0;
+  if (!scaled) {
+    if (!quadratic_start(u, &fn)) return g;
+  } else {
+    // Fixed point in the scale: the quadratic answer with the scale at the
+    // previous answer (from the fitted mean Fn), then Newton below.
+    auto it = model.inputs.find("fn_n");
+    fn = it != model.inputs.end() ? it->second.mean : 1.0;
+    for (int it_s = 0; it_s < 50; ++it_s) {
+      double next = 0.0;
+      if (!quadratic_start(ScaleAt(model, fn, options.v_mm_s) * u, &next))
+        return g;
+      const bool done = std::fabs(next - fn) < 1e-12 * next;
+      fn = next;
+      if (done) break;
     }
   }
   for (int it = 0; it < 20; ++it) {  // polish (no-op for linear terms)
@@ -284,6 +349,20 @@ GripForce CalcGripForce(const StochasticFrictionModel& model,
     const double step = r / slope;
     fn -= step;
     if (std::fabs(step) < 1e-12 * fn) break;
+  }
+  if (scaled) {
+    double slope;
+    const double r = residual(fn, &slope);
+    if (!(fn > 0) || !std::isfinite(fn) || !(std::fabs(r) <= 1e-9 * load_n)) {
+      g.status = GripForceStatus::kUnattainable;
+      g.why =
+          "no normal force holds the load at this risk with the eps scale "
+          "in " +
+          model.eps_scale->input +
+          " (Fn*mu(Fn) at the risk's quantile "
+          "does not reach the load)";
+      return g;
+    }
   }
   double slope;
   residual(fn, &slope);

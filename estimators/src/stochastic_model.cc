@@ -55,6 +55,15 @@ bool StochasticFitOptions::IsValid(std::string* why) const {
   if (!(always_level > 0.5 && always_level < 1))
     return fail("always_level = " + std::to_string(always_level) +
                 " (must be in (0.5, 1))");
+  if (!eps_scale_input.empty()) {
+    try {
+      const Term t = Term::Parse(eps_scale_input);
+      if (t.kind != TermKind::kLinear) throw std::invalid_argument("");
+    } catch (const std::invalid_argument&) {
+      return fail("eps_scale_input = '" + eps_scale_input.substr(0, 64) +
+                  "' (must be a column name)");
+    }
+  }
   return true;
 }
 
@@ -318,7 +327,21 @@ StochasticFit FitStochasticModel(const StrokeData& input,
     labelled = input;
     EnsureLabels(&labelled, options.labelling);
   }
-  const StrokeData& data = has_labels ? input : labelled;
+  // Computed columns the terms or the scale read (product columns "x*y",
+  // eps_scale.h) are added on the copy.
+  std::vector<std::string> computed;
+  for (const auto& name : options.terms) {
+    const Term t = Term::Parse(name);
+    if (!t.input.empty() && !input.Column(t.input)) computed.push_back(t.input);
+  }
+  if (!options.eps_scale_input.empty() &&
+      !input.Column(options.eps_scale_input))
+    computed.push_back(options.eps_scale_input);
+  if (!has_labels || !computed.empty()) {
+    if (has_labels) labelled = input;
+    for (const std::string& name : computed) AddComputedColumn(&labelled, name);
+  }
+  const StrokeData& data = has_labels && computed.empty() ? input : labelled;
   // One pass: mu = Ft/Fn, the samples within the exclusion bounds (for the
   // sigmoid likelihood) and the slipping ones among them (the fit rows,
   // CalcFitMask).
@@ -379,6 +402,13 @@ StochasticFit FitStochasticModel(const StrokeData& input,
   std::set<std::string> inputs;
   for (const Term& t : terms) {
     if (!t.input.empty()) inputs.insert(t.input);
+  }
+  // A product's factors and the scale's input are inputs too (given to
+  // predict by name, defaulting to their means).
+  if (!options.eps_scale_input.empty()) inputs.insert(options.eps_scale_input);
+  for (const std::string& name : std::set<std::string>(inputs)) {
+    std::string x, y;
+    if (SplitProductName(name, &x, &y)) inputs.insert(x), inputs.insert(y);
   }
   inputs.insert("fn_n");
   inputs.insert("v_mm_s");
@@ -446,13 +476,33 @@ StochasticFit FitStochasticModel(const StrokeData& input,
       }
       episode[k] = id;
     }
+    // Heteroscedastic eps (eps_scale.h): the scale fitted on the residuals,
+    // then the stored quantiles and the time model describe the
+    // standardised residuals r / ScaleFactor(x).
+    if (!options.eps_scale_input.empty()) {
+      const std::vector<double>& col = *data.Column(options.eps_scale_input);
+      std::vector<double> z(rows.size());
+      for (std::size_t k = 0; k < rows.size(); ++k) z[k] = col[rows[k]];
+      EpsScaleModel scale;
+      if (FitEpsScaleModel(residuals, z, options.eps_scale_input, &scale)) {
+        for (std::size_t k = 0; k < rows.size(); ++k)
+          residuals[k] /= scale.ScaleFactor(z[k]);
+        std::vector<double> e = residuals;
+        m.mu.eps_quantiles = SelectQuantiles(&e, EpsQuantileLevels());
+        m.eps_scale = std::move(scale);
+      } else {
+        why += std::string(why.empty() ? "" : "; ") + "eps scale in " +
+               options.eps_scale_input +
+               " not identified (no span or no residuals): constant scale";
+      }
+    }
     m.eps_time = FitEpsTimeModel(residuals, episode, dt);
   }
   // Sigmoid likelihood on all samples within the exclusion bounds.
   m.likelihood =
       FitSlipLikelihood(ratio, slip, options.never_level, options.always_level);
   fit.status = st;
-  fit.why = st == FitStatus::kPartial ? why : "";
+  fit.why = st == FitStatus::kPartial || !why.empty() ? why : "";
   return fit;
 }
 
@@ -494,17 +544,9 @@ MuPrediction PredictMu(const StochasticFrictionModel& model,
       x(k) = 1.0;
       continue;
     }
-    double value = 0.0;
     bool given = false;
-    for (const auto& [name, v] : inputs) {
-      if (name == t.input) {
-        value = v;
-        given = true;
-        break;
-      }
-    }
+    const double value = ResolveInputValue(model, inputs, t.input, &given);
     auto it = model.inputs.find(t.input);
-    if (!given) value = it != model.inputs.end() ? it->second.mean : 0.0;
     if (given && it != model.inputs.end() &&
         (value < it->second.min || value > it->second.max)) {
       if (std::find(out.extrapolated_inputs.begin(),
@@ -531,11 +573,66 @@ MuPrediction PredictMu(const StochasticFrictionModel& model,
   out.mu = m.beta.size() == x.size() ? m.beta.dot(x) : 0.0;
   const double var_param =
       m.P_beta.rows() == x.size() ? std::max(0.0, x.dot(m.P_beta * x)) : 0.0;
-  out.sigma = std::sqrt(m.sigma_eps * m.sigma_eps + var_param);
-  const double widen = m.sigma_eps > 0 ? out.sigma / m.sigma_eps : 1.0;
-  out.lo95 = out.mu + widen * CalcEpsQuantile(m, 0.025);
-  out.hi95 = out.mu + widen * CalcEpsQuantile(m, 0.975);
+  if (!model.eps_scale) {
+    out.sigma = std::sqrt(m.sigma_eps * m.sigma_eps + var_param);
+    const double widen = m.sigma_eps > 0 ? out.sigma / m.sigma_eps : 1.0;
+    out.lo95 = out.mu + widen * CalcEpsQuantile(m, 0.025);
+    out.hi95 = out.mu + widen * CalcEpsQuantile(m, 0.975);
+    return out;
+  }
+  // Heteroscedastic eps: the scale s at these inputs (eps_scale.h).
+  const double s = CalcEpsScaleFactor(model, inputs);
+  const double sigma_x = s * m.sigma_eps;
+  out.sigma = std::sqrt(sigma_x * sigma_x + var_param);
+  const double widen = sigma_x > 0 ? out.sigma / sigma_x : 1.0;
+  out.lo95 = out.mu + widen * s * CalcEpsQuantile(m, 0.025);
+  out.hi95 = out.mu + widen * s * CalcEpsQuantile(m, 0.975);
   return out;
+}
+
+double ResolveInputValue(const StochasticFrictionModel& model,
+                         const InputValues& inputs,
+                         const std::string& name,
+                         bool* given) {
+  if (given) *given = false;
+  for (const auto& [n, v] : inputs) {
+    if (n == name) {
+      if (given) *given = true;
+      return v;
+    }
+  }
+  // The product rule of eps_scale.h, from the factors' values (each given
+  // or at its mean).
+  std::string x, y;
+  if (SplitProductName(name, &x, &y))
+    return ResolveInputValue(model, inputs, x) *
+           ResolveInputValue(model, inputs, y);
+  auto it = model.inputs.find(name);
+  return it != model.inputs.end() ? it->second.mean : 0.0;
+}
+
+double CalcEpsScaleFactor(const StochasticFrictionModel& model,
+                          const InputValues& inputs) {
+  if (!model.eps_scale) return 1.0;
+  return model.eps_scale->ScaleFactor(
+      ResolveInputValue(model, inputs, model.eps_scale->input));
+}
+
+StochasticFitOptions CalcRefitOptions(const StochasticFrictionModel& previous,
+                                      const StrokeData& data) {
+  StochasticFitOptions o;
+  o.labelling = previous.labelling;
+  std::vector<std::string> terms;
+  bool computable = !previous.mu.terms.empty();
+  for (const Term& t : previous.mu.terms) {
+    if (t.kind != TermKind::kIntercept && !CanComputeColumn(data, t.input))
+      computable = false;
+    terms.push_back(t.Name());
+  }
+  if (computable) o.terms = terms;
+  if (previous.eps_scale && CanComputeColumn(data, previous.eps_scale->input))
+    o.eps_scale_input = previous.eps_scale->input;
+  return o;
 }
 
 MuPrediction PredictMu(const StochasticFrictionModel& model,

@@ -191,6 +191,17 @@ json StochasticModelToJson(const StochasticFrictionModel& model) {
                    {"min_instant_risk", t.min_instant_risk},
                    {"tail_xi", t.tail_xi},
                    {"tail_scale", t.tail_scale}};
+  if (model.eps_scale) {
+    // Heteroscedastic eps (eps_scale.h); absent: one scale (paper 000).
+    const EpsScaleModel& e = *model.eps_scale;
+    j["eps_scale"] = {{"input", e.input},
+                      {"model", "log_linear"},
+                      {"log_sigma_intercept", e.log_sigma_intercept},
+                      {"log_sigma_slope", e.log_sigma_slope},
+                      {"x_min", e.x_min},
+                      {"x_max", e.x_max},
+                      {"sigma_ref", e.sigma_ref}};
+  }
   return j;
 }
 
@@ -271,6 +282,33 @@ StochasticFrictionModel StochasticModelFromJson(const json& j) {
       e.why =
           "stored eps_time out of range (dt_s, phi, offset_fraction or "
           "min_instant_risk)";
+  }
+  if (j.contains("eps_scale") && !j["eps_scale"].is_null()) {
+    // Hostile input: a malformed scale is refused, naming the field.
+    const json& e = j["eps_scale"];
+    if (!e.is_object())
+      throw std::invalid_argument("stochastic.eps_scale: expected an object");
+    EpsScaleModel s;
+    if (!e.contains("input") || !e["input"].is_string())
+      throw std::invalid_argument(
+          "stochastic.eps_scale.input: expected a string");
+    s.input = e["input"].get<std::string>().substr(0, 256);
+    for (const auto& [name, field] :
+         {std::pair<const char*, double*>{"log_sigma_intercept",
+                                          &s.log_sigma_intercept},
+          {"log_sigma_slope", &s.log_sigma_slope},
+          {"x_min", &s.x_min},
+          {"x_max", &s.x_max},
+          {"sigma_ref", &s.sigma_ref}}) {
+      if (!e.contains(name) || !e[name].is_number())
+        throw std::invalid_argument(std::string("stochastic.eps_scale.") +
+                                    name + ": expected a number");
+      *field = e[name].get<double>();
+    }
+    std::string why;
+    if (!s.IsValid(&why))
+      throw std::invalid_argument("stochastic." + why.substr(0, 300));
+    m.eps_scale = std::move(s);
   }
   return m;
 }

@@ -1,6 +1,10 @@
 #include "frictiond/proto/model_json.h"
 
 #include <cmath>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -74,6 +78,60 @@ TEST(ModelJson, HostileEpsTimeLeavesItInvalid) {
   // A model stored before eps_time existed: no time model.
   j.erase("eps_time");
   EXPECT_FALSE(StochasticModelFromJson(j).eps_time.valid);
+}
+
+TEST(ModelJson, EpsScaleRoundTripsAndIsAbsentByDefault) {
+  StochasticFrictionModel m = WithTimeModel();
+  EXPECT_FALSE(StochasticModelToJson(m).contains("eps_scale"));
+  EXPECT_FALSE(StochasticModelFromJson(StochasticModelToJson(m)).eps_scale);
+  EpsScaleModel s;
+  s.input = "fn_n";
+  s.log_sigma_intercept = -4.1;
+  s.log_sigma_slope = 0.35;
+  s.x_min = 0.6;
+  s.x_max = 4.4;
+  s.sigma_ref = 0.031;
+  m.eps_scale = s;
+  const StochasticFrictionModel back =
+      StochasticModelFromJson(StochasticModelToJson(m));
+  ASSERT_TRUE(back.eps_scale.has_value());
+  EXPECT_EQ(back.eps_scale->input, "fn_n");
+  EXPECT_EQ(back.eps_scale->log_sigma_intercept, s.log_sigma_intercept);
+  EXPECT_EQ(back.eps_scale->log_sigma_slope, s.log_sigma_slope);
+  EXPECT_EQ(back.eps_scale->x_min, s.x_min);
+  EXPECT_EQ(back.eps_scale->x_max, s.x_max);
+  EXPECT_EQ(back.eps_scale->sigma_ref, s.sigma_ref);
+}
+
+TEST(ModelJson, HostileEpsScaleIsRefusedNamingTheField) {
+  StochasticFrictionModel m = WithTimeModel();
+  m.eps_scale = EpsScaleModel{"fn_n", -4.0, 0.3, 0.5, 4.0, 0.03};
+  const nlohmann::json good = StochasticModelToJson(m);
+  const std::vector<std::pair<std::string, nlohmann::json>> bad = {
+      {"sigma_ref", -1.0},
+      {"sigma_ref", 0.0},
+      {"x_min", 10.0},  // above x_max
+      {"log_sigma_slope", 1e300},
+      {"log_sigma_slope", "big"},
+      {"input", "fn_n; drop"},
+      {"input", 3},
+  };
+  for (const auto& [key, value] : bad) {
+    nlohmann::json j = good;
+    j["eps_scale"][key] = value;
+    try {
+      StochasticModelFromJson(j);
+      ADD_FAILURE() << key << " = " << value.dump() << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("eps_scale"), std::string::npos)
+          << e.what();
+    }
+  }
+  nlohmann::json j = good;
+  j["eps_scale"] = "yes";
+  EXPECT_THROW(StochasticModelFromJson(j), std::invalid_argument);
+  j["eps_scale"] = {{"input", "fn_n"}};  // missing numbers
+  EXPECT_THROW(StochasticModelFromJson(j), std::invalid_argument);
 }
 
 }  // namespace

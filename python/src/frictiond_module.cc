@@ -480,8 +480,9 @@ py::array_t<double> SampleMu(const Model& model,
       std::memcpy(&x[0], bc.operands[0].data, sizeof(double));
       std::memcpy(&x[1], bc.operands[1].data, sizeof(double));
       const double mean = s.CalcMean(x[0], x[1]);
+      const double scale = s.CalcEpsScale(x[0], x[1]);  // 1: no eps scale
       for (py::ssize_t i = 0; i < bc.size; ++i)
-        po[i] = mean + s.CalcEpsQuantile(u());
+        po[i] = mean + scale * s.CalcEpsQuantile(u());
     } else {
       ForEach<2>(bc, [&](py::ssize_t i, const double* x) {
         po[i] = s.Draw(x[0], x[1], u());

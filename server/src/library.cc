@@ -442,18 +442,12 @@ FrictionLibrary::ModelSetFit FrictionLibrary::FitModelSet(
     const CachedModel* previous,
     const SlipLabelOptions& labelling) const {
   StochasticFitOptions fit_options;
-  fit_options.labelling = labelling;
   if (previous && previous->set.stochastic) {
-    // Keep an extended model's terms when they can be computed from the data.
-    std::vector<std::string> terms;
-    bool computable = true;
-    for (const Term& t : previous->set.stochastic->mu.terms) {
-      if (t.kind != TermKind::kIntercept && !strokes.Column(t.input))
-        computable = false;
-      terms.push_back(t.Name());
-    }
-    if (computable) fit_options.terms = terms;
+    // Keep an extended model's terms (product columns included) and its eps
+    // scale when they can be computed from the data.
+    fit_options = CalcRefitOptions(*previous->set.stochastic, strokes);
   }
+  fit_options.labelling = labelling;
   // The family fitters (LuGre, eq. (2), ...) read only the data: they run
   // on a second thread while eq. (1) is fitted (as IdentifyMaterial does).
   struct FamilyFit {

@@ -60,6 +60,8 @@ void RegisterDiagnosisRoutes(HttpServer& http, FrictionLibrary& lib) {
           StochasticFitOptions fit_options;
           fit_options.labelling = options.labelling;
           fit_options.terms = result.extended.terms;
+          if (result.extended.eps_scale)
+            fit_options.eps_scale_input = result.extended.eps_scale->input;
           const StochasticFit fit = FitStochasticModel(data, fit_options);
           if (fit.status != FitStatus::kOk &&
               fit.status != FitStatus::kPartial) {

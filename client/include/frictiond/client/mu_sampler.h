@@ -72,9 +72,16 @@ class MuSampler {
   /// Empirical eps quantile at probability p. Equals
   /// CalcEpsQuantile(model.mu, p).
   double CalcEpsQuantile(double p) const;
-  /// One draw: CalcMean(fn_n, v_mm_s) + CalcEpsQuantile(u), u in [0, 1).
+  /// eps scale factor at (fn_n, v_mm_s): CalcEpsScaleFactor(model, {fn_n,
+  /// v_mm_s}) of a model with an eps scale (eps_scale.h), exactly 1
+  /// without one.
+  double CalcEpsScale(double fn_n, double v_mm_s) const;
+  /// One draw: CalcMean(fn_n, v_mm_s) + CalcEpsScale(fn_n, v_mm_s) *
+  /// CalcEpsQuantile(u), u in [0, 1) (without an eps scale model the
+  /// factor is 1: CalcMean + CalcEpsQuantile).
   double Draw(double fn_n, double v_mm_s, double u) const {
-    return CalcMean(fn_n, v_mm_s) + CalcEpsQuantile(u);
+    return CalcMean(fn_n, v_mm_s) +
+           CalcEpsScale(fn_n, v_mm_s) * CalcEpsQuantile(u);
   }
 
   const StochasticFrictionModel& model() const { return model_; }
@@ -82,13 +89,30 @@ class MuSampler {
  private:
   // Where term k's input comes from.
   // (kFnLinear, kVLinear: a linear term, x = the input itself.)
-  enum class Source { kFn, kV, kFnLinear, kVLinear, kConstant };
+  // (kFnV, kFnTimes, kVTimes: a product column "x*y" of fn_n and v_mm_s,
+  // or of one of them and a constant factor, eps_scale.h.)
+  enum class Source {
+    kFn,
+    kV,
+    kFnLinear,
+    kVLinear,
+    kConstant,
+    kFnV,
+    kFnTimes,
+    kVTimes
+  };
   // Fills x (PredictMu's regressors); false when the model has more terms
   // than the stack buffer (callers then use PredictMu).
   bool FillRegressors(double fn_n, double v_mm_s, double* x) const;
   StochasticFrictionModel model_;
-  std::vector<Source> source_;          // per term
-  std::vector<double> constant_;        // per term: its x when kConstant
+  std::vector<Source> source_;    // per term
+  std::vector<double> constant_;  // per term: its x when kConstant,
+                                  // the other factor for k*Times
+  // Where the eps scale's input comes from (kNone: no scale model;
+  // kGeneral: a product column, CalcEpsScaleFactor at (fn_n, v_mm_s)).
+  enum class ScaleSource { kNone, kFn, kV, kConstant, kGeneral };
+  ScaleSource scale_source_ = ScaleSource::kNone;
+  double scale_constant_ = 1.0;         // the factor when kConstant
   double q_lo95_ = 0.0, q_hi95_ = 0.0;  // eps quantiles at 0.025, 0.975
   // Fitted ranges of fn_n and v_mm_s (empty range = not fitted: never
   // flagged).

@@ -71,6 +71,7 @@
 #include <string>
 #include <vector>
 
+#include "frictiond/estimators/eps_scale.h"
 #include "frictiond/estimators/lugre.h"
 #include "frictiond/estimators/preprocessing.h"
 #include "frictiond/estimators/stroke_data.h"
@@ -183,21 +184,6 @@ struct Alternative {
                              ///< held-out error as the finding"
   double correlation = 0.0;  ///< Pearson correlation of the two causes'
                              ///< columns on the fitted samples
-};
-
-/// Scale model of eps (a `spread` finding): sigma_eps(x) =
-/// exp(log_sigma_intercept + log_sigma_slope * clamp(x, x_min, x_max)).
-struct EpsScaleModel {
-  std::string input;  ///< column or model input the scale depends on
-  double log_sigma_intercept = 0.0;
-  double log_sigma_slope = 0.0;     ///< per unit of input
-  double x_min = 0.0, x_max = 0.0;  ///< range seen in the fit (clamped)
-  double sigma_ref = 0.0;  ///< the constant-scale sigma_eps it replaces
-  /// sigma_eps at input value x (x outside the fitted range is clamped).
-  double Sigma(double x) const;
-  /// Sigma(x) / sigma_ref: multiply a constant-scale sigma_eps by this
-  /// (e.g. the grip force's eps scale at the grasp's input value).
-  double ScaleFactor(double x) const;
 };
 
 /// A significant cause, in the order it joined the model.

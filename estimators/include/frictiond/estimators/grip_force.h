@@ -13,6 +13,12 @@
 /// solves
 ///   Fn * (b0 + b1 v + b2 Fn + u) = load_n.                         (*)
 ///
+/// Heteroscedastic eps (model.eps_scale, eps_scale.h): u is a quantile of
+/// the standardised eps and (*) reads Fn (x(Fn)' beta + s(Fn, v) u) =
+/// load_n with s = ScaleFactor of the scale's input at the answer (Fn, v,
+/// or the input's fitted mean). Without a scale model s = 1 and the code
+/// path is the one before (bit for bit).
+///
 /// Departures from the paper: the paper's grip force uses one instant and
 /// the Fn-only model (mu = b0 + b2 Fn, whose intercept averages the speed
 /// effect over the data's sliding speeds). A held grasp is at v = 0, where

@@ -29,12 +29,14 @@
 
 #include <cstddef>
 #include <map>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include <Eigen/Dense>
 
+#include "frictiond/estimators/eps_scale.h"
 #include "frictiond/estimators/eps_time.h"
 #include "frictiond/estimators/preprocessing.h"
 #include "frictiond/estimators/regression.h"
@@ -114,6 +116,12 @@ struct StochasticFrictionModel {
   /// Time correlation of mu's eps (eps_time.h): AR(1) within episodes plus
   /// a per-episode offset, identified from the fitted slipping samples.
   EpsTimeModel eps_time;
+  /// Heteroscedastic eps (eps_scale.h; a diagnosed `spread`): when set,
+  /// eps at inputs x is ScaleFactor(x) times a draw of the constant-scale
+  /// distribution, and mu.eps_quantiles (and eps_time) describe the
+  /// standardised residuals r / ScaleFactor(x). Absent: eps has one scale
+  /// (paper 000), every evaluation as before.
+  std::optional<EpsScaleModel> eps_scale;
 };
 
 /// Options of FitStochasticModel.
@@ -131,6 +139,10 @@ struct StochasticFitOptions {
   /// Levels of the "never slips below" and "always slips above" ratios.
   double never_level = 0.01;
   double always_level = 0.99;
+  /// Column the scale of eps depends on (eps_scale.h), e.g. the input of a
+  /// diagnosed `spread` finding; empty (default): a constant scale. A
+  /// product name "x*y" is computed from its factors.
+  std::string eps_scale_input;
 
   /// True when usable; otherwise *why names the field, value and rule.
   bool IsValid(std::string* why) const;
@@ -151,6 +163,13 @@ struct StochasticFit {
 /// column the data does not have.
 StochasticFit FitStochasticModel(const StrokeData& data,
                                  const StochasticFitOptions& options = {});
+
+/// Options to refit `previous` on (new) data: its labelling, its term list
+/// and its eps scale input when every column they read is in `data` or can
+/// be computed from it (eps_scale.h: CanComputeColumn), otherwise eq. (1)
+/// and a constant scale. The one rule the daemon uses when strokes arrive.
+StochasticFitOptions CalcRefitOptions(const StochasticFrictionModel& previous,
+                                      const StrokeData& data);
 
 /// Fits the sigmoid slip likelihood by maximum likelihood (IRLS) on (ratio,
 /// slip) pairs. Separable data get a mild ridge on c1 so the answer stays
@@ -181,8 +200,24 @@ struct MuPrediction {
 /// fitted mean.
 using InputValues = std::vector<std::pair<std::string, double>>;
 
+/// Value of model input `name` at `inputs`: the given value; else, for a
+/// product "x*y" (eps_scale.h), the product of its factors' values; else
+/// its fitted mean (0 when unknown). *given (optional): the value itself
+/// was given.
+double ResolveInputValue(const StochasticFrictionModel& model,
+                         const InputValues& inputs,
+                         const std::string& name,
+                         bool* given = nullptr);
+
+/// eps scale factor at the inputs: model.eps_scale->ScaleFactor of its
+/// input's value (ResolveInputValue), exactly 1 without a scale model.
+double CalcEpsScaleFactor(const StochasticFrictionModel& model,
+                          const InputValues& inputs);
+
 /// Predicts mu at the given inputs (fn_n and v_mm_s, plus any covariates an
-/// extended model uses).
+/// extended model uses). With an eps scale model the interval and sigma use
+/// the scale at these inputs (sigma = sqrt((s sigma_eps)^2 + x' P_beta x),
+/// quantiles s * q_e).
 MuPrediction PredictMu(const StochasticFrictionModel& model,
                        const InputValues& inputs);
 /// Convenience overload for eq. (1)'s inputs.
