@@ -78,6 +78,7 @@ ModelLookup LookUpModelForQuery(FrictionLibrary& library,
     ModelLookup found =
         LookUpModel(library, out.material, fingertip, requested_by);
     found.recognition_score = out.recognition_score;
+    found.recognition = std::move(out.recognition);
     return found;
   } catch (const RequestError& e) {
     return reject(e.field() == "id" ? "material" : e.field(), e.what());
