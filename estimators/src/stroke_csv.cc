@@ -242,7 +242,8 @@ StrokeData ParseStrokeCsv(std::string_view text,
       throw StrokeCsvError(
           line_no,
           bad->field,
-          bad->field + " = " + Num(bad->value) + " (" + bad->rule + ")");
+          bad->field + " = " + Num(bad->value) + " (" +
+              (bad->bound.empty() ? bad->rule : "must be " + bad->bound) + ")");
     }
     last_t = data.t_s.back();
   }

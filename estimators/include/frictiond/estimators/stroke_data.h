@@ -69,6 +69,10 @@ struct SampleViolation {
   /// "must be finite", "must be finite and > 0", "must be finite and >= 0",
   /// or "time goes backwards from <previous t_s>".
   std::string rule;
+  /// The bound alone ("> 0", ">= 0") when a finite value broke it, else
+  /// empty: for callers that reject non-finite text before (the CSV
+  /// parser words it "fn_n = 0 (must be > 0)").
+  std::string bound;
 };
 
 /// The one per-sample validity rule of the contract (CONTRACT.md, "Stroke
