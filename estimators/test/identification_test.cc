@@ -88,7 +88,8 @@ TEST(IdentifyMaterial, EqualsTheStepsOnOneAndTwoThreads) {
 // identification assumes: per-stroke normal force 2-5 N (the LM-1 tie and
 // the pooled fits assume nothing about it), per-stroke peak speed and
 // acceleration drawn from ranges, sensor noise on mu; two slow strokes
-// (1.5-2.5 mm/s^2, Step 1) then six fast ones (15-40 mm/s^2 to 8-12 mm/s, Step 2).
+// (1.5-2.5 mm/s^2, Step 1) then six fast ones (15-40 mm/s^2 to 8-12 mm/s, Step
+// 2).
 StrokeData LuGreMaterial(std::uint64_t seed) {
   testing::LuGreStrokeSpec slow;
   slow.strokes = 2;
