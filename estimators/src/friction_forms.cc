@@ -6,6 +6,10 @@
 #include <map>
 #include <stdexcept>
 
+#include <Eigen/Core>
+
+#include "frictiond/estimators/least_squares.h"
+
 namespace frictiond {
 
 namespace {
@@ -38,55 +42,44 @@ bool FitLine(const std::vector<double>& x,
   return true;
 }
 
-// Gauss-Newton with step halving for mu = 1/(a Fn + b), from (a, b).
+// Gauss-Newton with step halving (SolveLeastSquares) for
+// mu = 1/(a Fn + b), from (a, b); unbounded, a trial with a*Fn + b <= 0 at
+// a sample is rejected. False when the start is outside that domain.
 bool FitReciprocalLs(const std::vector<double>& fn,
                      const std::vector<double>& mu,
                      double* a,
                      double* b) {
-  auto sse = [&](double aa, double bb) {
-    double s = 0;
-    for (std::size_t i = 0; i < fn.size(); ++i) {
-      const double d = aa * fn[i] + bb;
-      if (!(d > 0)) return std::numeric_limits<double>::infinity();
-      const double e = mu[i] - 1.0 / d;
-      s += e * e;
-    }
-    return s;
-  };
-  double f = sse(*a, *b);
-  if (!std::isfinite(f)) return false;
-  for (int it = 0; it < 50; ++it) {
-    double h00 = 0, h01 = 0, h11 = 0, g0 = 0, g1 = 0;
-    for (std::size_t i = 0; i < fn.size(); ++i) {
-      const double d = *a * fn[i] + *b;
+  const auto m = static_cast<Eigen::Index>(fn.size());
+  auto residual = [&](const Eigen::Vector2d& x,
+                      Eigen::VectorXd* r,
+                      Eigen::Matrix<double, Eigen::Dynamic, 2>* J) {
+    for (Eigen::Index i = 0; i < m; ++i) {
+      const double d = x[0] * fn[i] + x[1];
+      if (!(d > 0)) return false;
       const double p = 1.0 / d;
-      const double ja = -fn[i] * p * p, jb = -p * p;
-      const double e = mu[i] - p;
-      h00 += ja * ja;
-      h01 += ja * jb;
-      h11 += jb * jb;
-      g0 += ja * e;
-      g1 += jb * e;
+      (*r)[i] = mu[i] - p;
+      (*J)(i, 0) = fn[i] * p * p;  // d r / d a
+      (*J)(i, 1) = p * p;          // d r / d b
     }
-    const double det = h00 * h11 - h01 * h01;
-    if (!(det > 0)) return true;  // keep the current point
-    const double da = (h11 * g0 - h01 * g1) / det;
-    const double db = (h00 * g1 - h01 * g0) / det;
-    double step = 1.0;
-    bool improved = false;
-    for (int k = 0; k < 30; ++k, step *= 0.5) {
-      const double fa = sse(*a + step * da, *b + step * db);
-      if (fa < f) {
-        *a += step * da;
-        *b += step * db;
-        const double rel = (f - fa) / std::max(f, 1e-300);
-        f = fa;
-        improved = rel > 1e-12;
-        break;
-      }
-    }
-    if (!improved) break;
-  }
+    return std::isfinite(r->squaredNorm());
+  };
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  LeastSquaresOptions options;
+  options.method = LeastSquaresMethod::kGaussNewton;
+  options.max_iterations = 50;
+  options.min_rcond = 0.0;
+  LeastSquaresWorkspace<2> ws(m);
+  Eigen::Vector2d x(*a, *b);
+  const LeastSquaresSummary<2> s =
+      SolveLeastSquares<2>(residual,
+                           &x,
+                           Eigen::Vector2d(-kInf, -kInf),
+                           Eigen::Vector2d(kInf, kInf),
+                           options,
+                           &ws);
+  if (s.status == LeastSquaresStatus::kFailed) return false;
+  *a = x[0];
+  *b = x[1];
   return true;
 }
 

@@ -12,8 +12,8 @@ namespace frictiond {
 
 namespace {
 
-// Eq. (2) on every sample and the hull of the slipping ones: the steps
-// that do not need the regressions.
+// Eq. (2) on every sample, the hull of the slipping ones and the LuGre
+// family: the steps that do not need the regressions.
 void FitConditionalAndCoverage(const StrokeData& data,
                                const MaterialIdentificationOptions& options,
                                MaterialIdentification* out) {
@@ -36,6 +36,11 @@ void FitConditionalAndCoverage(const StrokeData& data,
   }
   out->coverage = CalcSpanCoverage(fn, v, options.reference);
   out->hull = CalcMaterialHullCoverage(fn, v, stroke);
+  if (options.lugre) {
+    out->lugre = IdentifyLuGreFromStrokes(data);
+  } else {
+    out->lugre.why = "not requested";
+  }
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
+#include "frictiond/estimators/least_squares.h"
 #include "frictiond/estimators/lugre.h"
 
 namespace frictiond {
@@ -266,98 +267,58 @@ JointFitResult FitJointModel(JointModelKind kind,
                               : StartGuess(kind, data, config, rows);
   theta = theta.cwiseMax(lo).cwiseMin(hi);
 
-  Eigen::VectorXd r(m);
-  Eigen::MatrixXd J(m, p);
+  LeastSquaresWorkspace<Eigen::Dynamic> ws(m, p);
   Eigen::RowVectorXd row(p);
-  auto evaluate = [&](const Eigen::VectorXd& th, bool with_j) {
-    double cost = 0;
-    for (Eigen::Index i = 0; i < m; ++i) {
-      const std::size_t k = rows[static_cast<std::size_t>(i)];
-      const double f = PredictJointFriction(kind,
-                                            th,
-                                            config,
-                                            data.v_mm_s[k],
-                                            data.load_n[k],
-                                            data.eta_pa_s[k],
-                                            with_j ? &row : nullptr);
-      r[i] = f - data.mu[k];
-      if (with_j) J.row(i) = row;
-      cost += r[i] * r[i];
-    }
-    return std::isfinite(cost) ? cost : std::numeric_limits<double>::infinity();
-  };
-
-  double cost = evaluate(theta, true);
-  if (!std::isfinite(cost)) {
+  auto evaluate =
+      [&](const Eigen::VectorXd& th, Eigen::VectorXd* r, Eigen::MatrixXd* J) {
+        for (Eigen::Index i = 0; i < m; ++i) {
+          const std::size_t k = rows[static_cast<std::size_t>(i)];
+          const double f = PredictJointFriction(kind,
+                                                th,
+                                                config,
+                                                data.v_mm_s[k],
+                                                data.load_n[k],
+                                                data.eta_pa_s[k],
+                                                &row);
+          (*r)[i] = f - data.mu[k];
+          J->row(i) = row;
+        }
+        return std::isfinite(r->squaredNorm()) && J->allFinite();
+      };
+  LeastSquaresOptions solver;
+  solver.max_iterations = options.max_iterations;
+  solver.cost_tolerance = options.cost_tolerance;
+  solver.min_rcond = options.min_rcond;
+  solver.lambda_increase = 4.0;
+  solver.lambda_decrease = 3.0;
+  solver.min_diagonal = 1e-12;
+  const LeastSquaresSummary<Eigen::Dynamic> s =
+      SolveLeastSquares<Eigen::Dynamic>(evaluate, &theta, lo, hi, solver, &ws);
+  if (s.status == LeastSquaresStatus::kFailed) {
     out.status = JointFitStatus::kFailed;
     out.why = "model is not finite at the start";
     out.theta = theta;
     out.P_theta = Eigen::MatrixXd::Zero(p, p);
     return out;
   }
-  double lambda = 1e-3;
-  bool converged = false;
-  int it = 0;
-  Eigen::MatrixXd A(p, p);
-  Eigen::VectorXd g(p), step(p), trial(p);
-  Eigen::VectorXd r_best = r;
-  Eigen::MatrixXd J_best = J;
-  for (; it < options.max_iterations && !converged; ++it) {
-    A.noalias() = J.transpose() * J;
-    g.noalias() = J.transpose() * r;
-    const Eigen::VectorXd diag = A.diagonal().cwiseMax(1e-12);
-    bool accepted = false;
-    for (int tries = 0; tries < 30 && !accepted; ++tries) {
-      Eigen::MatrixXd M = A;
-      M.diagonal() += lambda * diag;
-      step = M.ldlt().solve(-g);
-      trial = (theta + step).cwiseMax(lo).cwiseMin(hi);
-      const double c = evaluate(trial, true);
-      if (c < cost) {
-        const double gain = (cost - c) / std::max(cost, 1e-300);
-        const double move = (trial - theta).norm() / (theta.norm() + 1e-12);
-        theta = trial;
-        cost = c;
-        r_best = r;
-        J_best = J;
-        lambda = std::max(lambda / 3.0, 1e-12);
-        accepted = true;
-        if (gain < options.cost_tolerance || move < 1e-12) converged = true;
-      } else {
-        r = r_best;
-        J = J_best;
-        lambda *= 4.0;
-      }
-    }
-    if (!accepted) converged = true;  // no descent: at a (bounded) minimum
-  }
-  r = r_best;
-  J = J_best;
+  const bool converged = s.status == LeastSquaresStatus::kConverged;
+  const Eigen::VectorXd& r = ws.r;
+  const Eigen::MatrixXd& J = ws.J;
   out.theta = theta;
-  out.iterations = it;
-  out.residual_rms = std::sqrt(cost / static_cast<double>(m));
+  out.iterations = s.iterations;
+  out.residual_rms = std::sqrt(s.cost / static_cast<double>(m));
 
   // Robust (sandwich) covariance on the Jacobi-scaled normal matrix.
-  A.noalias() = J.transpose() * J;
-  const Eigen::VectorXd scale =
-      A.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
-  const Eigen::MatrixXd As = scale.asDiagonal() * A * scale.asDiagonal();
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(As);
-  const double emax = es.eigenvalues().maxCoeff();
-  const double emin = es.eigenvalues().minCoeff();
-  out.rcond = emax > 0 ? std::max(0.0, emin) / emax : 0.0;
-  if (!(out.rcond >= options.min_rcond)) {
+  out.rcond = s.rcond;
+  if (s.status == LeastSquaresStatus::kRankDeficient ||
+      !(out.rcond >= options.min_rcond)) {
     out.status = JointFitStatus::kNotObservable;
     out.why = "J^T J is rank deficient (rcond " + Num(out.rcond) +
               "): the data do not excite every parameter";
     out.P_theta = Eigen::MatrixXd::Zero(p, p);
     return out;
   }
-  const Eigen::MatrixXd As_inv = es.eigenvectors() *
-                                 es.eigenvalues().cwiseInverse().asDiagonal() *
-                                 es.eigenvectors().transpose();
-  const Eigen::MatrixXd A_inv =
-      scale.asDiagonal() * As_inv * scale.asDiagonal();
+  const Eigen::MatrixXd& A_inv = s.JtJ_inv;
   const Eigen::MatrixXd Jr = r.asDiagonal() * J;
   const Eigen::MatrixXd meat = Jr.transpose() * Jr;
   out.P_theta = A_inv * meat * A_inv *

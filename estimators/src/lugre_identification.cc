@@ -9,6 +9,8 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "frictiond/estimators/least_squares.h"
+
 namespace frictiond {
 namespace internal {
 namespace {
@@ -30,7 +32,7 @@ bool Fail(std::string* why,
   return false;
 }
 
-// Settings shared by the LM/GN loops.
+// Settings shared by the LM/GN fits.
 struct SolverSettings {
   int max_iterations;
   double cost_tolerance;
@@ -49,112 +51,54 @@ struct SolverSummary {
   std::string why;
 };
 
-// Minimises |r(x)|^2 within [lower, upper] by Levenberg-Marquardt with
-// Marquardt scaling (paper eq. 14) or Gauss-Newton with step halving.
-// eval(x, r, J) fills the residual and Jacobian and returns false when they
-// are not finite. r, J, r_try, J_try are work buffers of the right size.
+// Minimises |r(x)|^2 within [lower, upper] by SolveLeastSquares (LM with
+// Marquardt scaling, paper eq. 14, or Gauss-Newton with step halving) and
+// maps its outcome to a LuGre status and P = s^2 (J^T J)^-1 with
+// s^2 = cost / (m - N).
 template <int N, typename Eval>
 SolverSummary<N> Solve(Eval&& eval,
                        Eigen::Matrix<double, N, 1>* x,
                        const Eigen::Matrix<double, N, 1>& lower,
                        const Eigen::Matrix<double, N, 1>& upper,
                        const SolverSettings& settings,
-                       Eigen::VectorXd& r,
-                       Eigen::Matrix<double, Eigen::Dynamic, N>& J,
-                       Eigen::VectorXd& r_try,
-                       Eigen::Matrix<double, Eigen::Dynamic, N>& J_try) {
-  using VecN = Eigen::Matrix<double, N, 1>;
-  using MatN = Eigen::Matrix<double, N, N>;
+                       LeastSquaresWorkspace<N>* ws) {
+  LeastSquaresOptions options;
+  options.method = settings.gauss_newton
+                       ? LeastSquaresMethod::kGaussNewton
+                       : LeastSquaresMethod::kLevenbergMarquardt;
+  options.max_iterations = settings.max_iterations;
+  options.cost_tolerance = settings.cost_tolerance;
+  options.initial_lambda = settings.initial_lambda;
+  options.min_rcond = settings.min_rcond;
+  const LeastSquaresSummary<N> s =
+      SolveLeastSquares<N>(eval, x, lower, upper, options, ws);
   SolverSummary<N> out;
-  const Eigen::Index m = r.size();
-  if (m < N) {
-    out.status = LuGreFitStatus::kNotEnoughData;
-    out.why = std::to_string(m) + " residuals for " + std::to_string(N) +
-              " parameters";
-    return out;
-  }
-  if (!eval(*x, &r, &J)) {
-    out.why = "model not finite at the initial guess";
-    return out;
-  }
-  double cost = r.squaredNorm();
-  double lambda = settings.initial_lambda;
-  MatN A;
-  MatN M;
-  VecN g;
-  VecN delta;
-  VecN x_try;
-  bool converged = false;
-  int it = 0;
-  for (; it < settings.max_iterations && !converged; ++it) {
-    A.noalias() = J.transpose() * J;
-    g.noalias() = J.transpose() * r;
-    const VecN diag = A.diagonal().cwiseMax(1e-300);
-    bool accepted = false;
-    double cost_try = cost;
-    double alpha = 1.0;
-    for (int tries = 0; tries < 30 && !accepted; ++tries) {
-      M = A;
-      if (!settings.gauss_newton) M.diagonal() += lambda * diag;
-      // Tiny Tikhonov floor so that GN survives a singular J^T J.
-      M.diagonal() += 1e-14 * diag;
-      delta = M.ldlt().solve(-g);
-      x_try = (*x + alpha * delta).cwiseMax(lower).cwiseMin(upper);
-      if (eval(x_try, &r_try, &J_try)) {
-        cost_try = r_try.squaredNorm();
-        if (cost_try <= cost) accepted = true;
-      }
-      if (!accepted) {
-        if (settings.gauss_newton) {
-          alpha *= 0.5;
-        } else {
-          lambda *= 10.0;
-        }
-      }
-    }
-    if (!accepted) {
-      // No descent direction left at machine precision: a minimum.
-      converged = true;
+  out.iterations = s.iterations;
+  out.cost = s.cost;
+  out.rcond = s.rcond;
+  out.why = s.why;
+  const Eigen::Index m = ws->r.size();
+  switch (s.status) {
+    case LeastSquaresStatus::kNotEnoughData:
+      out.status = LuGreFitStatus::kNotEnoughData;
+      return out;
+    case LeastSquaresStatus::kFailed:
+      out.status = LuGreFitStatus::kFailed;
+      return out;
+    case LeastSquaresStatus::kRankDeficient:
+      out.status = LuGreFitStatus::kNotObservable;
+      out.why = "scaled J^T J is rank deficient (rcond = " + Num(s.rcond) +
+                " <= min_rcond = " + Num(settings.min_rcond) + ")";
       break;
-    }
-    const double decrease = (cost - cost_try) / std::max(cost, 1e-300);
-    const double step =
-        ((x_try - *x).cwiseAbs().array() / (x->cwiseAbs().array() + 1e-12))
-            .maxCoeff();
-    *x = x_try;
-    std::swap(r, r_try);
-    J.swap(J_try);
-    cost = cost_try;
-    lambda = std::max(lambda / 10.0, 1e-12);
-    if (decrease < settings.cost_tolerance || step < 1e-12) converged = true;
+    case LeastSquaresStatus::kConverged:
+      out.status = LuGreFitStatus::kConverged;
+      break;
+    case LeastSquaresStatus::kMaxIterations:
+      out.status = LuGreFitStatus::kMaxIterations;
+      break;
   }
-  out.iterations = it;
-  out.cost = cost;
-  A.noalias() = J.transpose() * J;
-  const VecN d = A.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
-  const MatN As = d.asDiagonal() * A * d.asDiagonal();
-  Eigen::SelfAdjointEigenSolver<MatN> es(As, Eigen::EigenvaluesOnly);
-  const double ev_max = es.eigenvalues().maxCoeff();
-  out.rcond =
-      ev_max > 0 ? std::max(0.0, es.eigenvalues().minCoeff()) / ev_max : 0.0;
-  const double s2 = m > N ? cost / static_cast<double>(m - N) : kNaN;
-  if (out.rcond > settings.min_rcond) {
-    out.P = s2 * (d.asDiagonal() * As.ldlt().solve(MatN::Identity()) *
-                  d.asDiagonal());
-  } else {
-    out.P.setConstant(kNaN);
-  }
-  if (out.rcond <= settings.min_rcond) {
-    out.status = LuGreFitStatus::kNotObservable;
-    out.why = "scaled J^T J is rank deficient (rcond = " + Num(out.rcond) +
-              " <= min_rcond = " + Num(settings.min_rcond) + ")";
-  } else if (converged) {
-    out.status = LuGreFitStatus::kConverged;
-  } else {
-    out.status = LuGreFitStatus::kMaxIterations;
-    out.why = "max_iterations = " + std::to_string(settings.max_iterations) +
-              " reached";
-  }
+  const double s2 = m > N ? s.cost / static_cast<double>(m - N) : kNaN;
+  out.P = s2 * s.JtJ_inv;
   return out;
 }
 
@@ -340,8 +284,7 @@ LuGreFitResult FitLuGreQuasiStatic(const LuGreStroke& stroke,
     }
     return r->allFinite() && J->allFinite();
   };
-  Eigen::VectorXd r(m), r_try(m);
-  Eigen::Matrix<double, Eigen::Dynamic, 4> J(m, 4), J_try(m, 4);
+  LeastSquaresWorkspace<4> ws(m);
   Eigen::Vector4d p = initial_guess;
   const internal::SolverSettings settings{
       options.max_iterations,
@@ -349,15 +292,8 @@ LuGreFitResult FitLuGreQuasiStatic(const LuGreStroke& stroke,
       options.initial_lambda,
       options.min_rcond,
       options.solver == QuasiStaticSolver::kGaussNewton};
-  const internal::SolverSummary<4> s = internal::Solve<4>(eval,
-                                                          &p,
-                                                          options.lower_bounds,
-                                                          options.upper_bounds,
-                                                          settings,
-                                                          r,
-                                                          J,
-                                                          r_try,
-                                                          J_try);
+  const internal::SolverSummary<4> s = internal::Solve<4>(
+      eval, &p, options.lower_bounds, options.upper_bounds, settings, &ws);
   result.status = s.status;
   result.why = s.why;
   result.iterations = s.iterations;
@@ -563,15 +499,14 @@ LuGreFitResult RunDynamicFit(const LuGreStroke& stroke,
     J->noalias() = J_full * map.Chain(xx);
     return r->allFinite() && J->allFinite();
   };
-  Eigen::VectorXd r(n), r_try(n);
-  Eigen::Matrix<double, Eigen::Dynamic, N> J(n, N), J_try(n, N);
+  LeastSquaresWorkspace<N> ws(n);
   const internal::SolverSettings settings{options.max_iterations,
                                           options.cost_tolerance,
                                           options.initial_lambda,
                                           options.min_rcond,
                                           false};
   const internal::SolverSummary<N> s =
-      internal::Solve<N>(eval, &x, lower, upper, settings, r, J, r_try, J_try);
+      internal::Solve<N>(eval, &x, lower, upper, settings, &ws);
 
   LuGreFitResult result;
   result.theta = initial_theta;

@@ -202,32 +202,15 @@ StrokeData ParseStrokeCsv(std::string_view text,
       }
       switch (spec.role) {
         case Role::kTime:
-          if (x < last_t) {
-            throw StrokeCsvError(line_no,
-                                 spec.name,
-                                 "t_s = " + Num(x) +
-                                     " (time goes backwards: previous t_s = " +
-                                     Num(last_t) + ")");
-          }
-          last_t = x;
           data.t_s.push_back(x);
           break;
         case Role::kFn:
-          if (!(x > 0))
-            throw StrokeCsvError(
-                line_no, spec.name, "fn_n = " + Num(x) + " (must be > 0)");
           data.fn_n.push_back(x);
           break;
         case Role::kFt:
-          if (!(x >= 0))
-            throw StrokeCsvError(
-                line_no, spec.name, "ft_n = " + Num(x) + " (must be >= 0)");
           data.ft_n.push_back(x);
           break;
         case Role::kV:
-          if (!(x >= 0))
-            throw StrokeCsvError(
-                line_no, spec.name, "v_mm_s = " + Num(x) + " (must be >= 0)");
           data.v_mm_s.push_back(x);
           break;
         case Role::kSlip:
@@ -250,6 +233,19 @@ StrokeData ParseStrokeCsv(std::string_view text,
           break;
       }
     }
+    // The row's required values: the one per-sample rule (stroke_data.h).
+    if (auto bad = CheckSample(data.t_s.back(),
+                               data.fn_n.back(),
+                               data.ft_n.back(),
+                               data.v_mm_s.back(),
+                               last_t)) {
+      throw StrokeCsvError(
+          line_no,
+          bad->field,
+          bad->field + " = " + Num(bad->value) + " (" +
+              (bad->bound.empty() ? bad->rule : "must be " + bad->bound) + ")");
+    }
+    last_t = data.t_s.back();
   }
   if (!header_done)
     throw StrokeCsvError(

@@ -2,9 +2,33 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 namespace frictiond {
+
+std::optional<SampleViolation> CheckSample(
+    double t_s, double fn_n, double ft_n, double v_mm_s, double previous_t_s) {
+  if (!std::isfinite(t_s))
+    return SampleViolation{"t_s", t_s, "must be finite", ""};
+  if (t_s < previous_t_s) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.10g", previous_t_s);
+    return SampleViolation{
+        "t_s", t_s, std::string("time goes backwards from ") + buf, ""};
+  }
+  auto broken = [](const char* field, double x, const char* bound) {
+    return SampleViolation{field,
+                           x,
+                           std::string("must be finite and ") + bound,
+                           std::isfinite(x) ? bound : ""};
+  };
+  if (!(fn_n > 0) || !std::isfinite(fn_n)) return broken("fn_n", fn_n, "> 0");
+  if (!(ft_n >= 0) || !std::isfinite(ft_n)) return broken("ft_n", ft_n, ">= 0");
+  if (!(v_mm_s >= 0) || !std::isfinite(v_mm_s))
+    return broken("v_mm_s", v_mm_s, ">= 0");
+  return std::nullopt;
+}
 
 std::optional<std::size_t> StrokeData::FindCovariate(
     std::string_view name) const {

@@ -1,13 +1,17 @@
 #include "frictiond/estimators/identification.h"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdint>
 #include <stdexcept>
+#include <string>
 #include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
 
 #include "frictiond/estimators/preprocessing.h"
+#include "frictiond/testing/lugre_strokes.h"
 #include "frictiond/testing/stroke_simulator.h"
 
 namespace frictiond {
@@ -90,6 +94,89 @@ TEST(IdentifyMaterial, EqualsTheStepsOnOneAndTwoThreads) {
     // profiles never reach together.
     EXPECT_GT(id.coverage.span_pct, 60.0);
   }
+}
+
+// LuGre strokes of one material from a generator wider than the
+// identification assumes: per-stroke normal force 2-5 N (the LM-1 tie and
+// the pooled fits assume nothing about it), per-stroke peak speed and
+// acceleration drawn from ranges, sensor noise on mu; two slow strokes
+// (1.5-2.5 mm/s^2, Step 1) then six fast ones (15-40 mm/s^2 to 8-12 mm/s, Step
+// 2).
+StrokeData LuGreMaterial(std::uint64_t seed) {
+  testing::LuGreStrokeSpec slow;
+  slow.strokes = 2;
+  slow.accel_min_mm_s2 = 1.5;
+  slow.accel_max_mm_s2 = 2.5;
+  slow.v_min_mm_s = 15.0;
+  slow.v_max_mm_s = 25.0;
+  StrokeData d = testing::SimulateLuGreStrokes(slow, seed);
+  testing::LuGreStrokeSpec fast;
+  fast.strokes = 6;
+  // Slow enough starts that the bristles deflect over several samples at
+  // 200 Hz (faster ones leave sigma0 unobservable: kNotObservable).
+  fast.v_min_mm_s = 8.0;
+  fast.v_max_mm_s = 12.0;
+  fast.accel_min_mm_s2 = 15.0;
+  fast.accel_max_mm_s2 = 40.0;
+  StrokeData f = testing::SimulateLuGreStrokes(fast, seed + 1);
+  const double t0 = d.t_s.back() + 5.0;
+  for (double& t : f.t_s) t += t0;
+  d.Append(f);
+  return d;
+}
+
+// The one entry point identifies the LuGre family from the recognised
+// strokes, equal to IdentifyLuGreFromStrokes on one and two threads, and
+// recovers the planted parameters (docs/lugre.md's truth, all away from
+// zero) over several seeds.
+TEST(IdentifyMaterial, IdentifiesLuGreFromRecognisedStrokes) {
+  const testing::LuGreStrokeSpec spec;
+  const LuGreTheta truth = spec.theta;
+  for (std::uint64_t seed : {11u, 12u, 13u}) {
+    const StrokeData data = LuGreMaterial(seed);
+    const LuGreIdentification direct = IdentifyLuGreFromStrokes(data);
+    ASSERT_TRUE(direct.identified) << "seed " << seed << ": " << direct.why;
+    EXPECT_EQ(direct.strokes_quasi_static, 2) << seed;
+    EXPECT_EQ(direct.strokes_dynamic, 6) << seed;
+    const LuGreFamily& f = direct.family;
+    // Step 1 pools both slow strokes, Step 2 combines up to four fast ones.
+    EXPECT_EQ(f.strokes_quasi_static, 2);
+    EXPECT_GE(f.strokes_dynamic, 1);
+    EXPECT_LT(std::abs(f.theta[0] / truth[0] - 1), 0.03) << f.theta[0];
+    EXPECT_LT(std::abs(f.theta[1] / truth[1] - 1), 0.03) << f.theta[1];
+    EXPECT_LT(std::abs(f.theta[2] / truth[2] - 1), 0.2) << f.theta[2];
+    EXPECT_LT(std::abs(f.theta[4] / truth[4] - 1), 0.2) << f.theta[4];
+    EXPECT_LT(f.residual_rms, 2.0 * spec.noise_mu);
+    MaterialIdentificationOptions options;
+    for (int threads : {1, 2}) {
+      options.threads = threads;
+      const MaterialIdentification id = IdentifyMaterial(data, options);
+      ASSERT_TRUE(id.lugre.identified) << id.lugre.why;
+      EXPECT_EQ(id.lugre.family.theta, f.theta) << threads;
+      EXPECT_EQ(id.lugre.family.P_theta, f.P_theta) << threads;
+      // The other families come from the same call.
+      EXPECT_GT(id.fit.model.mu.beta.size(), 0);
+      EXPECT_GT(id.coverage.samples, 0);
+    }
+  }
+}
+
+// Null case: stochastic strokes only (all fast, no low-acceleration pair):
+// nothing is identified and the reason names what is missing; with
+// options.lugre = false nothing is attempted.
+TEST(IdentifyMaterial, LuGreNeedsTheIdentifyingPair) {
+  const StrokeData raw = Unlabelled(33);
+  const MaterialIdentification id = IdentifyMaterial(raw);
+  ASSERT_EQ(id.fit.status, FitStatus::kOk) << id.fit.why;
+  EXPECT_FALSE(id.lugre.identified);
+  EXPECT_NE(id.lugre.why.find("acceleration stroke"), std::string::npos)
+      << id.lugre.why;
+  MaterialIdentificationOptions options;
+  options.lugre = false;
+  const MaterialIdentification off = IdentifyMaterial(raw, options);
+  EXPECT_FALSE(off.lugre.identified);
+  EXPECT_EQ(off.lugre.why, "not requested");
+  EXPECT_EQ(off.fit.model.mu.beta, id.fit.model.mu.beta);
 }
 
 TEST(IdentifyMaterial, RejectsBadOptions) {

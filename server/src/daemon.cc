@@ -382,7 +382,7 @@ int Daemon::Start() {
     std::cerr << "frictiond: bound to " << config_.bind
               << " (not loopback): reads need a reader token\n";
   RegisterCoreRoutes(*http_, *library_);
-  RegisterPaper000Routes(*http_, *library_);
+  RegisterModelQueryRoutes(*http_, *library_);
   RegisterLuGreFeature(*http_, *library_);
   RegisterDiagnosisRoutes(*http_, *library_);
   RegisterJointRoutes(*http_, *library_);

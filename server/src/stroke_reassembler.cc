@@ -1,12 +1,15 @@
 #include "frictiond/server/stroke_reassembler.h"
 
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
 namespace frictiond {
 
 namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
 
 std::string Num(double x) {
   std::ostringstream s;
@@ -95,26 +98,16 @@ void ValidateStrokeChunk(const StrokeChunk& c,
   same_size(c.ft_n, "ft_n");
   same_size(c.v_mm_s, "v_mm_s");
   for (std::size_t i = 0; i < n; ++i) {
-    const std::string at = "[" + std::to_string(i) + "]";
-    if (!std::isfinite(c.t_s[i]))
-      Reject("t_s" + at, " = " + Num(c.t_s[i]) + " (must be finite)", field);
-    if (i > 0 && c.t_s[i] < c.t_s[i - 1])
-      Reject("t_s" + at,
-             " = " + Num(c.t_s[i]) + " (time goes backwards from " +
-                 Num(c.t_s[i - 1]) + ")",
+    // The one per-sample rule (estimators/stroke_data.h), as the CSV parser.
+    if (auto bad = CheckSample(c.t_s[i],
+                               c.fn_n[i],
+                               c.ft_n[i],
+                               c.v_mm_s[i],
+                               i > 0 ? c.t_s[i - 1] : -kInf)) {
+      Reject(bad->field + "[" + std::to_string(i) + "]",
+             " = " + Num(bad->value) + " (" + bad->rule + ")",
              field);
-    if (!(c.fn_n[i] > 0) || !std::isfinite(c.fn_n[i]))
-      Reject("fn_n" + at,
-             " = " + Num(c.fn_n[i]) + " (must be finite and > 0)",
-             field);
-    if (!(c.ft_n[i] >= 0) || !std::isfinite(c.ft_n[i]))
-      Reject("ft_n" + at,
-             " = " + Num(c.ft_n[i]) + " (must be finite and >= 0)",
-             field);
-    if (!(c.v_mm_s[i] >= 0) || !std::isfinite(c.v_mm_s[i]))
-      Reject("v_mm_s" + at,
-             " = " + Num(c.v_mm_s[i]) + " (must be finite and >= 0)",
-             field);
+    }
   }
 }
 

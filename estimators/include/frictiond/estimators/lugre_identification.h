@@ -36,11 +36,13 @@
 
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 
 #include "frictiond/estimators/lugre.h"
+#include "frictiond/estimators/stroke_data.h"
 
 namespace frictiond {
 
@@ -354,5 +356,106 @@ class LuGreStiffnessEkf {
 LuGreFitResult FitLuGreEkf(const LuGreStroke& stroke,
                            const LuGreTheta& quasi_static_theta,
                            const LuGreEkfOptions& options = LuGreEkfOptions());
+
+// ---------------------------------------------------------------------------
+// Identification from a material's recorded strokes (the daemon's rule)
+// ---------------------------------------------------------------------------
+
+/// One identified LuGre model, as a model set stores it (the JSON form is
+/// proto/lugre_json.h). Copyable value type.
+struct LuGreFamily {
+  /// [mu_s, mu_c, v0, sigma2, sigma0, sigma1] (units in LuGreTheta).
+  LuGreTheta theta = LuGreTheta::Zero();
+  /// Covariance of theta. Block-diagonal when identified in two steps: Step 2
+  /// (sigma0, sigma1) conditions on the Step-1 estimate.
+  LuGreThetaCov P_theta = LuGreThetaCov::Zero();
+  /// Status of the identification ("converged", ...; LuGreFitStatus names).
+  std::string status = "converged";
+  /// Step-2 variant: "lm1", "lm2", "lm6" or "ekf".
+  std::string variant = "lm2";
+  /// Solver iterations, both steps together.
+  int iterations = 0;
+  /// RMS of mu_model - mu on the dynamic stroke(s) [-].
+  double residual_rms = 0.0;
+  /// RMS of the quasi-static fit on its stroke(s) [-].
+  double quasi_static_residual_rms = 0.0;
+  /// Initial bristle deflection fitted on the (newest) dynamic stroke [mm].
+  double z0_mm = 0.0;
+  /// Samples with |dz/dt| above the excitation threshold (Step 2).
+  int excited_samples = 0;
+  /// Strokes used by Step 1 (low acceleration) and Step 2 (high acceleration).
+  int strokes_quasi_static = 0;
+  int strokes_dynamic = 0;
+};
+
+/// Kind of a recognised stroke (paper 001, Section III).
+enum class LuGreStrokeKind {
+  kQuasiStatic,   ///< acceleration <= 3 mm/s^2: Step 1
+  kDynamic,       ///< acceleration >= 5 mm/s^2: Step 2
+  kIntermediate,  ///< in between: not used
+  kTooShort,      ///< fewer than 20 moving samples: not used
+};
+
+/// One stroke recognised in a material's samples, in signed form.
+/// Copyable and movable value type.
+struct RecognizedStroke {
+  std::vector<double> t_s;     ///< sample times [s]
+  std::vector<double> v_mm_s;  ///< signed velocity [mm/s]
+  std::vector<double> mu;      ///< signed friction ratio [-]
+  double accel_mm_s2 = 0.0;    ///< 95th percentile |dv/dt| over moving samples
+  double fn_mean_n = 0.0;      ///< mean normal force over the stroke [N]
+  int moving = 0;              ///< moving samples
+  LuGreStrokeKind kind = LuGreStrokeKind::kTooShort;
+};
+
+/// Recognises strokes in recorded samples (docs/lugre.md, "Service"):
+/// 1. Signs. v_mm_s and ft_n are magnitudes. Without a `dir_sign` covariate
+///    every stroke is one-directional: v = v_mm_s >= 0 and mu = ft_n/fn_n.
+///    With a finite `dir_sign` column (+1/-1/0) v = dir_sign * v_mm_s, and
+///    the force takes the new direction where |Ft|/Fn passes its minimum
+///    between 0.2 s before the reversal and 1 s after the speed left the
+///    rest band.
+/// 2. Runs: cut at time gaps (> 10 median steps) and where time goes
+///    backwards (a new upload).
+/// 3. Strokes: speed median-filtered over 50 ms; samples at or below 5 % of
+///    the run's peak filtered speed are at rest; a rest of >= 0.25 s splits
+///    strokes; a stroke is its moving samples plus up to 0.1 s of rest on
+///    either side.
+/// 4. Acceleration: least-squares slope of v over +-50 ms (>= +-2 samples);
+///    a stroke's is the 95th percentile of |dv/dt| over its moving samples.
+/// 5. Kinds: quasi-static <= 3 mm/s^2, dynamic >= 5 mm/s^2 (paper 001,
+///    Section III); in between, or fewer than 20 moving samples, unused.
+/// Returns the strokes oldest first. `data` need not be labelled.
+std::vector<RecognizedStroke> RecognizeLuGreStrokes(const StrokeData& data);
+
+/// Result of IdentifyLuGreFromStrokes.
+struct LuGreIdentification {
+  /// True when a family was identified; otherwise `why` says what is
+  /// missing (a normal outcome: e.g. no high-acceleration stroke yet).
+  bool identified = false;
+  LuGreFamily family;
+  std::string why;
+  int strokes_quasi_static = 0;  ///< recognised, of each kind
+  int strokes_dynamic = 0;
+  int strokes_intermediate = 0;
+  int strokes_too_short = 0;
+};
+
+/// The two-step identification from a material's samples (paper 001,
+/// Section III), as the daemon runs it on every upload: recognise strokes
+/// (RecognizeLuGreStrokes); Step 1 fits all quasi-static strokes together
+/// (newest first, up to 1e6 samples; FitLuGreQuasiStatic by LM from three
+/// starts, the best converged kept); Step 2 fits dynamic strokes, newest
+/// first, one at a time (LM-2 from sigma0 = 10 and 100 /mm, else LM-1 with
+/// sigma1 tied by CalcDampingGain(1 kg, the stroke's mean Fn, 0.5)). A
+/// Step-2 fit is accepted when it converged, z0 is not at a bound and its
+/// residual RMS is at most 3 times Step 1's. Up to four accepted fits (of
+/// at most twelve tried, 40 000 samples) are combined by their information
+/// matrices (sigma0, sigma1), LM-2 fits preferred over LM-1.
+/// Departure from the paper: the paper fits one stroke of each kind; this
+/// pools every recognised stroke so that later uploads refine the model.
+/// Needs at least one stroke of each kind; otherwise identified = false
+/// with the reason. Never throws for data (statuses are results).
+LuGreIdentification IdentifyLuGreFromStrokes(const StrokeData& data);
 
 }  // namespace frictiond

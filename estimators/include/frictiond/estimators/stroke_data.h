@@ -6,6 +6,7 @@
 /// Column-major so that a million-sample upload is a handful of allocations.
 
 #include <cstddef>
+#include <limits>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -58,5 +59,33 @@ struct StrokeData {
   /// Reserves capacity for n samples in every column.
   void Reserve(std::size_t n);
 };
+
+/// A broken per-sample rule (CheckSample): the field, its value and the
+/// rule, so a caller can write "fn_n = -1 (must be finite and > 0)" with
+/// its own location (CSV line, LCM sample index).
+struct SampleViolation {
+  std::string field;  ///< "t_s", "fn_n", "ft_n" or "v_mm_s"
+  double value = 0.0;
+  /// "must be finite", "must be finite and > 0", "must be finite and >= 0",
+  /// or "time goes backwards from <previous t_s>".
+  std::string rule;
+  /// The bound alone ("> 0", ">= 0") when a finite value broke it, else
+  /// empty: for callers that reject non-finite text before (the CSV
+  /// parser words it "fn_n = 0 (must be > 0)").
+  std::string bound;
+};
+
+/// The one per-sample validity rule of the contract (CONTRACT.md, "Stroke
+/// data"), used by the CSV parser and the LCM stroke reassembler: t_s
+/// finite and not below previous_t_s; fn_n finite and > 0; ft_n and v_mm_s
+/// finite and >= 0. Checked in that order; the first broken rule is
+/// returned, nullopt when the sample is valid. previous_t_s is the time of
+/// the sample before (-inf for the first).
+std::optional<SampleViolation> CheckSample(
+    double t_s,
+    double fn_n,
+    double ft_n,
+    double v_mm_s,
+    double previous_t_s = -std::numeric_limits<double>::infinity());
 
 }  // namespace frictiond

@@ -29,37 +29,15 @@
 #include <nlohmann/json.hpp>
 
 #include "frictiond/estimators/lugre.h"
+#include "frictiond/estimators/lugre_identification.h"
 
 namespace frictiond {
 
 /// Key of the LuGre family in a model set.
 inline constexpr const char* kLuGreFamilyKey = "lugre";
 
-/// One identified LuGre model as stored in a model set. Copyable value type.
-struct LuGreFamily {
-  /// [mu_s, mu_c, v0, sigma2, sigma0, sigma1] (units in LuGreTheta).
-  LuGreTheta theta = LuGreTheta::Zero();
-  /// Covariance of theta. Block-diagonal when identified in two steps: Step 2
-  /// (sigma0, sigma1) conditions on the Step-1 estimate.
-  LuGreThetaCov P_theta = LuGreThetaCov::Zero();
-  /// Status of the identification ("converged", ...; LuGreFitStatus names).
-  std::string status = "converged";
-  /// Step-2 variant: "lm1", "lm2", "lm6" or "ekf".
-  std::string variant = "lm2";
-  /// Solver iterations, both steps together.
-  int iterations = 0;
-  /// RMS of mu_model - mu on the dynamic stroke(s) [-].
-  double residual_rms = 0.0;
-  /// RMS of the quasi-static fit on its stroke(s) [-].
-  double quasi_static_residual_rms = 0.0;
-  /// Initial bristle deflection fitted on the (newest) dynamic stroke [mm].
-  double z0_mm = 0.0;
-  /// Samples with |dz/dt| above the excitation threshold (Step 2).
-  int excited_samples = 0;
-  /// Strokes used by Step 1 (low acceleration) and Step 2 (high acceleration).
-  int strokes_quasi_static = 0;
-  int strokes_dynamic = 0;
-};
+// LuGreFamily (the identified model this file encodes) is declared in
+// frictiond/estimators/lugre_identification.h.
 
 /// The JSON key of theta entry i (0..5): "mu_s", "mu_c", "v0_mm_s",
 /// "sigma2_s_mm", "sigma0_per_mm", "sigma1_s_mm".

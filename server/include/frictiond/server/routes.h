@@ -21,9 +21,11 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& library);
 
 /// Feature modules (each in server/src/routes_<feature>.cc). Each may also
 /// register family fitters and model listeners on the library.
-void RegisterPaper000Routes(
-    HttpServer& http,
-    FrictionLibrary& library);  // coverage, control, likelihood extras
+/// Queries of a stored stochastic model (docs/paper000.md):
+/// /target-force (eq. 3), /sliding-speed (eq. 4),
+/// /conditional-slip-likelihood (eq. 2, family "slip_likelihood_fn"),
+/// /forms, /mu-spread, /span-variability.
+void RegisterModelQueryRoutes(HttpServer& http, FrictionLibrary& library);
 void RegisterLuGreFeature(
     HttpServer& http, FrictionLibrary& library);  // LuGre family + /breakaway
 void RegisterDiagnosisRoutes(HttpServer& http,

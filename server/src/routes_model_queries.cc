@@ -1,7 +1,8 @@
-// Paper 000 routes beyond the core ones (docs/paper000.md): controlled
-// sliding (eq. 3), velocity prediction (eq. 4) and the conditional slip
-// likelihood L(Fn, Ft/Fn) of eq. (2), stored as model family
-// "slip_likelihood_fn".
+// Queries of a stored stochastic model beyond the core ones (paper 000,
+// docs/paper000.md): controlled sliding (eq. 3), velocity prediction
+// (eq. 4), the conditional slip likelihood L(Fn, Ft/Fn) of eq. (2) (stored
+// as model family "slip_likelihood_fn"), the forms of mu = f(Fn), the
+// spread of mu in windows and the span variability.
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -13,6 +14,7 @@
 #include "frictiond/estimators/mu_windows.h"
 #include "frictiond/estimators/slip_likelihood.h"
 #include "frictiond/estimators/span_variability.h"
+#include "frictiond/proto/slip_likelihood_json.h"
 #include "frictiond/server/routes.h"
 
 namespace frictiond {
@@ -110,78 +112,34 @@ HttpResponse HandleSlidingSpeed(FrictionLibrary& lib, const HttpRequest& req) {
 
 // --- conditional slip likelihood (eq. 2) ---------------------------------
 
-constexpr char kConditionalKey[] = "slip_likelihood_fn";
-
-json ConditionalToJson(const ConditionalSlipLikelihood& L) {
-  json knots = json::array();
-  for (std::size_t k = 0; k < L.knot_fn_n.size(); ++k) {
-    knots.push_back(
-        {{"fn_n", L.knot_fn_n[k]}, {"c1", L.knot_c1[k]}, {"c2", L.knot_c2[k]}});
-  }
-  json windows = json::array();
-  for (const SlipWindowFit& w : L.windows) {
-    json j = {{"fn_n", w.fn_center_n},
-              {"samples", w.samples},
-              {"slipping", w.slipping},
-              {"valid", w.fit.valid}};
-    if (w.fit.valid) {
-      j["c1"] = w.fit.c1;
-      j["c2"] = w.fit.c2;
-      j["c1_se"] = std::sqrt(std::max(0.0, w.fit.P_c(0, 0)));
-      j["c2_se"] = std::sqrt(std::max(0.0, w.fit.P_c(1, 1)));
-    } else {
-      j["why"] = w.fit.why;
-    }
-    windows.push_back(std::move(j));
-  }
-  return {{"step_n", L.step_n},
-          {"window_n", L.window_n},
-          {"knots", knots},
-          {"windows", windows}};
-}
+constexpr const char* kConditionalKey = kConditionalSlipFamilyKey;
 
 // Knots of a stored family; throws std::runtime_error when malformed (a
 // server-side fault: the store holds it).
 ConditionalSlipLikelihood ConditionalFromJson(const json& j) {
-  ConditionalSlipLikelihood L;
   try {
-    L.step_n = j.at("step_n").get<double>();
-    L.window_n = j.at("window_n").get<double>();
-    for (const json& k : j.at("knots")) {
-      L.knot_fn_n.push_back(k.at("fn_n").get<double>());
-      L.knot_c1.push_back(k.at("c1").get<double>());
-      L.knot_c2.push_back(k.at("c2").get<double>());
-    }
-  } catch (const json::exception& e) {
+    return ConditionalSlipFromJson(j);
+  } catch (const std::invalid_argument& e) {
     throw std::runtime_error(std::string("stored ") + kConditionalKey +
                              " is malformed: " + e.what());
   }
-  L.valid = !L.knot_fn_n.empty();
-  return L;
 }
 
+// The family fitter: eq. (2) on every labelled sample (as IdentifyMaterial).
 json FitConditionalFamily(const StrokeData& all, std::string* note) {
-  std::vector<double> fn, ratio;
-  std::vector<int> slip;
   if (all.slip.size() != all.size()) {
     *note = "no slip labels";
     return nullptr;
   }
-  fn.reserve(all.size());
-  ratio.reserve(all.size());
-  slip.reserve(all.size());
-  for (std::size_t i = 0; i < all.size(); ++i) {
-    fn.push_back(all.fn_n[i]);
-    ratio.push_back(all.mu(i));
-    slip.push_back(all.slip[i]);
-  }
+  std::vector<double> ratio(all.size());
+  for (std::size_t i = 0; i < all.size(); ++i) ratio[i] = all.mu(i);
   const ConditionalSlipLikelihood L =
-      FitConditionalSlipLikelihood(fn, ratio, slip);
+      FitConditionalSlipLikelihood(all.fn_n, ratio, all.slip);
   if (!L.valid) {
     *note = L.why;
     return nullptr;
   }
-  return ConditionalToJson(L);
+  return ConditionalSlipToJson(L);
 }
 
 HttpResponse HandleConditional(FrictionLibrary& lib, const HttpRequest& req) {
@@ -493,7 +451,7 @@ HttpResponse HandleForms(FrictionLibrary& lib, const HttpRequest& req) {
 
 }  // namespace
 
-void RegisterPaper000Routes(HttpServer& http, FrictionLibrary& lib) {
+void RegisterModelQueryRoutes(HttpServer& http, FrictionLibrary& lib) {
   lib.AddFamilyFitter(kConditionalKey,
                       [](const StrokeData& all,
                          const StrokeData& /*upload*/,

@@ -1,4 +1,4 @@
-// Paper 000 routes (docs/paper000.md) through HttpServer::Dispatch on an
+// Model query routes (docs/paper000.md) through HttpServer::Dispatch on an
 // in-memory library, with strokes simulated from a known model.
 #include <cmath>
 #include <string>
@@ -16,11 +16,11 @@ namespace {
 
 using nlohmann::json;
 
-class Paper000RoutesTest : public ::testing::Test {
+class ModelQueryRoutesTest : public ::testing::Test {
  protected:
-  Paper000RoutesTest() : lib_(OpenStore(":memory:")) {
+  ModelQueryRoutesTest() : lib_(OpenStore(":memory:")) {
     RegisterCoreRoutes(http_, lib_);
-    RegisterPaper000Routes(http_, lib_);
+    RegisterModelQueryRoutes(http_, lib_);
   }
   HttpResponse Get(const std::string& path,
                    std::multimap<std::string, std::string> query = {}) {
@@ -59,7 +59,7 @@ class Paper000RoutesTest : public ::testing::Test {
   HttpServer http_;
 };
 
-TEST_F(Paper000RoutesTest, TargetForceAndSlidingSpeedRoundTrip) {
+TEST_F(ModelQueryRoutesTest, TargetForceAndSlidingSpeedRoundTrip) {
   testing::SimulationSpec spec;  // b0 0.9, b1 0.004, b2 -0.06
   Upload("felt", spec);
   const json f = GetOk("/v1/materials/felt/target-force",
@@ -75,7 +75,7 @@ TEST_F(Paper000RoutesTest, TargetForceAndSlidingSpeedRoundTrip) {
   EXPECT_GT(s["b1_t"].get<double>(), 10.0) << s.dump();
 }
 
-TEST_F(Paper000RoutesTest, BadParametersAnswer400NamingTheField) {
+TEST_F(ModelQueryRoutesTest, BadParametersAnswer400NamingTheField) {
   Upload("felt", {});
   const std::string t = "/v1/materials/felt/target-force";
   const std::string s = "/v1/materials/felt/sliding-speed";
@@ -89,7 +89,7 @@ TEST_F(Paper000RoutesTest, BadParametersAnswer400NamingTheField) {
   ExpectBad(s, {{"fn_n", "1"}, {"ft_n", "-1"}}, "ft_n");
 }
 
-TEST_F(Paper000RoutesTest, SlidingSpeedWithoutSpeedSlopeIs422) {
+TEST_F(ModelQueryRoutesTest, SlidingSpeedWithoutSpeedSlopeIs422) {
   // Constant sliding speed (like data/microtribo_recip): b1 is not
   // identified, so eq. (4) cannot tell the speed.
   StrokeData d;
@@ -118,7 +118,7 @@ TEST_F(Paper000RoutesTest, SlidingSpeedWithoutSpeedSlopeIs422) {
   EXPECT_NEAR(f["mu"].get<double>(), 0.9 - 0.06 * 2, 0.01) << f.dump();
 }
 
-TEST_F(Paper000RoutesTest, ConditionalSlipLikelihoodFlagsExtrapolation) {
+TEST_F(ModelQueryRoutesTest, ConditionalSlipLikelihoodFlagsExtrapolation) {
   testing::SimulationSpec spec;
   spec.strokes = 30;
   Upload("felt", spec);
@@ -152,7 +152,7 @@ TEST_F(Paper000RoutesTest, ConditionalSlipLikelihoodFlagsExtrapolation) {
   EXPECT_TRUE(core.contains("likelihood"));
 }
 
-TEST_F(Paper000RoutesTest, FormsAreComparedOnHeldOutStrokes) {
+TEST_F(ModelQueryRoutesTest, FormsAreComparedOnHeldOutStrokes) {
   testing::SimulationSpec spec;  // mu linear in Fn (b2 = -0.06)
   spec.strokes = 20;
   Upload("felt", spec);
@@ -170,7 +170,7 @@ TEST_F(Paper000RoutesTest, FormsAreComparedOnHeldOutStrokes) {
   ExpectBad("/v1/materials/felt/forms", {{"bogus", "1"}}, "bogus");
 }
 
-TEST_F(Paper000RoutesTest, MuSpreadNarrowsWithWindows) {
+TEST_F(ModelQueryRoutesTest, MuSpreadNarrowsWithWindows) {
   testing::SimulationSpec spec;  // sigma_eps 0.05
   spec.strokes = 60;
   Upload("felt", spec);
@@ -200,7 +200,7 @@ TEST_F(Paper000RoutesTest, MuSpreadNarrowsWithWindows) {
             "v_widths_mm_s");
 }
 
-TEST_F(Paper000RoutesTest, SpanVariabilityBins) {
+TEST_F(ModelQueryRoutesTest, SpanVariabilityBins) {
   testing::SimulationSpec spec;
   spec.strokes = 30;
   Upload("felt", spec);
@@ -224,7 +224,7 @@ TEST_F(Paper000RoutesTest, SpanVariabilityBins) {
 // carries stroke-clustered standard errors beside the i.i.d. ones, and they
 // are the larger (the i.i.d. ones under-cover on such data), stored and read
 // back unchanged.
-TEST_F(Paper000RoutesTest, ModelServesStrokeClusteredStandardErrors) {
+TEST_F(ModelQueryRoutesTest, ModelServesStrokeClusteredStandardErrors) {
   testing::SimulationSpec spec;
   spec.strokes = 12;
   spec.ar_rho = 0.95;
@@ -241,7 +241,7 @@ TEST_F(Paper000RoutesTest, ModelServesStrokeClusteredStandardErrors) {
   }
 }
 
-TEST_F(Paper000RoutesTest, UnknownMaterialIs404) {
+TEST_F(ModelQueryRoutesTest, UnknownMaterialIs404) {
   const HttpResponse r = Get("/v1/materials/nothing/target-force",
                              {{"fn_n", "1"}, {"v_mm_s", "3"}});
   EXPECT_EQ(r.status, 404) << r.body;
