@@ -37,7 +37,14 @@ void FitConditionalAndCoverage(const StrokeData& data,
   out->coverage = CalcSpanCoverage(fn, v, options.reference);
   out->hull = CalcMaterialHullCoverage(fn, v, stroke);
   if (options.lugre) {
-    out->lugre = IdentifyLuGreFromStrokes(data);
+    // A family that cannot be identified is a status, never an exception
+    // (the other families stand).
+    try {
+      out->lugre = IdentifyLuGreFromStrokes(data);
+    } catch (const std::exception& e) {
+      out->lugre = LuGreIdentification{};
+      out->lugre.why = std::string("identification failed: ") + e.what();
+    }
   } else {
     out->lugre.why = "not requested";
   }

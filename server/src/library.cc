@@ -8,8 +8,11 @@
 #include <future>
 #include <sstream>
 
+#include "frictiond/estimators/identification.h"
 #include "frictiond/estimators/stroke_csv.h"
 #include "frictiond/proto/actuator_json.h"
+#include "frictiond/proto/lugre_json.h"
+#include "frictiond/proto/slip_likelihood_json.h"
 #include "frictiond/server/identification_json.h"
 #include "frictiond/server/model_lookup.h"
 #include "frictiond/server/text.h"
@@ -448,35 +451,50 @@ FrictionLibrary::ModelSetFit FrictionLibrary::FitModelSet(
     fit_options = CalcRefitOptions(*previous->set.stochastic, strokes);
   }
   fit_options.labelling = labelling;
-  // The family fitters (LuGre, eq. (2), ...) read only the data: they run
-  // on a second thread while eq. (1) is fitted (as IdentifyMaterial does).
+  // Every built-in family comes from the one estimators entry point
+  // (identification.h: eq. (1) with eps, eq. (2), LuGre from recognised
+  // strokes, coverage), so `bench/run identify_material` times what an
+  // upload does. Families registered with AddFamilyFitter (extensions) read
+  // only the data and run beside it on another thread.
   struct FamilyFit {
     std::string family;
     json model;
     std::string note;
   };
-  std::future<std::vector<FamilyFit>> families =
-      std::async(std::launch::async, [this, &strokes, &upload, previous] {
-        std::vector<FamilyFit> out;
-        for (const auto& [family, fitter] : fitters_) {
-          FamilyFit f{family, nullptr, ""};
-          f.model = fitter(strokes, upload, previous, &f.note);
-          out.push_back(std::move(f));
-        }
-        return out;
-      });
+  std::future<std::vector<FamilyFit>> families;
+  if (!fitters_.empty()) {
+    families =
+        std::async(std::launch::async, [this, &strokes, &upload, previous] {
+          std::vector<FamilyFit> out;
+          for (const auto& [family, fitter] : fitters_) {
+            FamilyFit f{family, nullptr, ""};
+            f.model = fitter(strokes, upload, previous, &f.note);
+            out.push_back(std::move(f));
+          }
+          return out;
+        });
+  }
+  auto wait_families = [&families] {
+    if (families.valid()) families.wait();  // it reads `strokes`
+  };
+  MaterialIdentificationOptions id_options;
+  id_options.fit = fit_options;
+  const StrokePlanOptions& plan = options_.plan;
+  id_options.reference = {
+      plan.fn_min_n, plan.fn_max_n, plan.v_min_mm_s, plan.v_max_mm_s};
   ModelSetFit out;
-  StochasticFit fit;
+  MaterialIdentification id;
   try {
-    fit = FitStochasticModel(strokes, fit_options);
+    id = IdentifyMaterial(strokes, id_options);
   } catch (...) {
-    families.wait();  // it reads `strokes`
+    wait_families();
     throw;
   }
+  StochasticFit& fit = id.fit;
   out.status = fit.status;
   out.why = fit.why;
   if (fit.status != FitStatus::kOk && fit.status != FitStatus::kPartial) {
-    families.wait();
+    wait_families();
     return out;
   }
   out.set.material = material;
@@ -488,10 +506,26 @@ FrictionLibrary::ModelSetFit FrictionLibrary::FitModelSet(
       if (it.key() != "reason") out.set.other[it.key()] = *it;
     }
   }
-  for (FamilyFit& f : families.get()) {
-    if (!f.model.is_null()) out.set.other[f.family] = std::move(f.model);
-    if (!f.note.empty()) {
-      out.note += (out.note.empty() ? "" : "; ") + f.family + ": " + f.note;
+  auto add_note = [&out](const std::string& family, const std::string& note) {
+    if (!note.empty())
+      out.note += (out.note.empty() ? "" : "; ") + family + ": " + note;
+  };
+  // A family the data cannot identify keeps its previous version, if any.
+  if (id.conditional.valid) {
+    out.set.other[kConditionalSlipFamilyKey] =
+        ConditionalSlipToJson(id.conditional);
+  } else {
+    add_note(kConditionalSlipFamilyKey, id.conditional.why);
+  }
+  if (id.lugre.identified) {
+    out.set.other[kLuGreFamilyKey] = LuGreToJson(id.lugre.family);
+  } else {
+    add_note(kLuGreFamilyKey, id.lugre.why);
+  }
+  if (families.valid()) {
+    for (FamilyFit& f : families.get()) {
+      if (!f.model.is_null()) out.set.other[f.family] = std::move(f.model);
+      add_note(f.family, f.note);
     }
   }
   return out;

@@ -104,25 +104,8 @@ HttpResponse HandleBreakaway(FrictionLibrary& lib, const HttpRequest& req) {
 }  // namespace
 
 void RegisterLuGreFeature(HttpServer& http, FrictionLibrary& library) {
-  library.AddFamilyFitter(
-      kLuGreFamilyKey,
-      [](const StrokeData& all,
-         const StrokeData& /*upload*/,
-         const CachedModel* /*previous*/,
-         std::string* note) -> json {
-        std::string local;
-        std::string* out = note ? note : &local;
-        try {
-          const LuGreIdentification id = IdentifyLuGreFromStrokes(all);
-          if (id.identified) return LuGreToJson(id.family);
-          *out = id.why;
-        } catch (const std::exception& e) {
-          *out = std::string("identification failed: ") + e.what();
-        } catch (...) {
-          *out = "identification failed";
-        }
-        return nullptr;
-      });
+  // The LuGre family is identified on upload by IdentifyMaterial
+  // (FrictionLibrary::FitModelSet); these routes only read it.
   http.Route("GET",
              "/v1/materials/{id}/breakaway",
              [&library](const HttpRequest& req) {

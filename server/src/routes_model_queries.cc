@@ -126,22 +126,6 @@ ConditionalSlipLikelihood ConditionalFromJson(const json& j) {
 }
 
 // The family fitter: eq. (2) on every labelled sample (as IdentifyMaterial).
-json FitConditionalFamily(const StrokeData& all, std::string* note) {
-  if (all.slip.size() != all.size()) {
-    *note = "no slip labels";
-    return nullptr;
-  }
-  std::vector<double> ratio(all.size());
-  for (std::size_t i = 0; i < all.size(); ++i) ratio[i] = all.mu(i);
-  const ConditionalSlipLikelihood L =
-      FitConditionalSlipLikelihood(all.fn_n, ratio, all.slip);
-  if (!L.valid) {
-    *note = L.why;
-    return nullptr;
-  }
-  return ConditionalSlipToJson(L);
-}
-
 HttpResponse HandleConditional(FrictionLibrary& lib, const HttpRequest& req) {
   const double fn = ForceParam(req, "fn_n", true);
   const bool has_ft = req.Query("ft_n").has_value();
@@ -452,20 +436,8 @@ HttpResponse HandleForms(FrictionLibrary& lib, const HttpRequest& req) {
 }  // namespace
 
 void RegisterModelQueryRoutes(HttpServer& http, FrictionLibrary& lib) {
-  lib.AddFamilyFitter(kConditionalKey,
-                      [](const StrokeData& all,
-                         const StrokeData& /*upload*/,
-                         const CachedModel* /*previous*/,
-                         std::string* note) -> json {
-                        std::string local;
-                        std::string* out = note ? note : &local;
-                        try {
-                          return FitConditionalFamily(all, out);
-                        } catch (const std::exception& e) {
-                          *out = std::string("fit failed: ") + e.what();
-                        }
-                        return nullptr;
-                      });
+  // The eq. (2) family is identified on upload by IdentifyMaterial
+  // (FrictionLibrary::FitModelSet); these routes only read it.
   http.Route(
       "GET",
       "/v1/materials/{id}/conditional-slip-likelihood",
