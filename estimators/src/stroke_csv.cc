@@ -10,11 +10,13 @@ namespace frictiond {
 
 StrokeCsvError::StrokeCsvError(std::size_t line,
                                std::string field,
-                               const std::string& message)
+                               const std::string& message,
+                               bool too_large)
     : std::invalid_argument(
           line > 0 ? "line " + std::to_string(line) + ": " + message : message),
       line_(line),
-      field_(std::move(field)) {}
+      field_(std::move(field)),
+      too_large_(too_large) {}
 
 namespace {
 
@@ -178,7 +180,8 @@ StrokeData ParseStrokeCsv(std::string_view text,
       throw StrokeCsvError(line_no,
                            "body",
                            "more than " + std::to_string(options.max_samples) +
-                               " samples (split the upload)");
+                               " samples (split the upload)",
+                           /*too_large=*/true);
     }
     for (std::size_t c = 0; c < cells.size(); ++c) {
       const ColumnSpec& spec = columns[c];

@@ -109,7 +109,7 @@ int ParseIntParam(const HttpRequest& req,
   if (!v) return fallback;
   const double d = ParseNumberParam(name, *v);
   if (!(d >= lo && d <= hi) || d != static_cast<double>(static_cast<int>(d)))
-    throw RequestError(400,
+    throw RequestError(StatusCode::kInvalidArgument,
                        name,
                        name + " = '" + v->substr(0, 32) +
                            "' (must be an integer in " + std::to_string(lo) +
@@ -303,15 +303,16 @@ CreatedToken Authenticator::CreateToken(const std::string& name,
       !std::all_of(name.begin(), name.end(), [](char c) {
         return c >= 0x20 && c < 0x7f;
       }))
-    throw RequestError(
-        400, "name", "name must be 1..64 printable ASCII characters");
+    throw RequestError(StatusCode::kInvalidArgument,
+                       "name",
+                       "name must be 1..64 printable ASCII characters");
   if (!ParseRole(role))
-    throw RequestError(400,
+    throw RequestError(StatusCode::kInvalidArgument,
                        "role",
                        "role '" + ShownText(role, 32) +
                            "' (must be reader, robot or operator)");
   if (!secret.empty() && !IsValidSecret(secret))
-    throw RequestError(400,
+    throw RequestError(StatusCode::kInvalidArgument,
                        "secret",
                        "token secret must be 16..256 printable characters "
                        "without spaces");
@@ -328,7 +329,9 @@ CreatedToken Authenticator::CreateToken(const std::string& name,
       return out;
     }
     if (store_.FindTokenByHash(out.record.hash))
-      throw RequestError(409, "secret", "a token with this secret exists");
+      throw RequestError(StatusCode::kAlreadyExists,
+                         "secret",
+                         "a token with this secret exists");
   }
   throw std::runtime_error("could not allocate a token id");
 }
@@ -366,15 +369,18 @@ void RegisterAuthRoutes(HttpServer& http, Authenticator& auth, Store& store) {
   http.Route("POST", "/v1/tokens", [&auth](const HttpRequest& req) {
     const json body = json::parse(req.body, nullptr, false);
     if (!body.is_object())
-      throw RequestError(400, "body", "expected a JSON object {name, role}");
+      throw RequestError(StatusCode::kInvalidArgument,
+                         "body",
+                         "expected a JSON object {name, role}");
     for (const char* key : {"name", "role"}) {
       if (!body.contains(key) || !body[key].is_string())
-        throw RequestError(
-            400, key, std::string(key) + ": required, must be a string");
+        throw RequestError(StatusCode::kInvalidArgument,
+                           key,
+                           std::string(key) + ": required, must be a string");
     }
     for (auto it = body.begin(); it != body.end(); ++it) {
       if (it.key() != "name" && it.key() != "role")
-        throw RequestError(400,
+        throw RequestError(StatusCode::kInvalidArgument,
                            ShownText(it.key(), 64),
                            "unknown key '" + ShownText(it.key(), 64) + "'");
     }
@@ -398,10 +404,12 @@ void RegisterAuthRoutes(HttpServer& http, Authenticator& auth, Store& store) {
         if (!auth.RevokeToken(id)) {
           for (const TokenRecord& t : store.ListTokens()) {
             if (t.id == id)
-              throw RequestError(
-                  409, "id", "token " + id + " is already revoked");
+              throw RequestError(StatusCode::kAlreadyExists,
+                                 "id",
+                                 "token " + id + " is already revoked");
           }
-          throw RequestError(404, "id", "unknown token '" + id + "'");
+          throw RequestError(
+              StatusCode::kNotFound, "id", "unknown token '" + id + "'");
         }
         return HttpResponse::Json(200, {{"id", id}, {"revoked", true}});
       });

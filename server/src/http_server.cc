@@ -33,7 +33,9 @@ std::string HttpRequest::QueryOr(const std::string& name,
 double HttpRequest::RequireNumber(const std::string& name) const {
   auto v = Query(name);
   if (!v)
-    throw RequestError(400, name, "query parameter " + name + " is required");
+    throw RequestError(StatusCode::kInvalidArgument,
+                       name,
+                       "query parameter " + name + " is required");
   return ParseNumberParam(name, *v);
 }
 
@@ -142,9 +144,10 @@ std::string ErrorTitle(int status) {
 }
 
 // Checks the text of a request every handler may read: path segments,
-// query names and values, header values (text.h). Throws RequestError(400).
-// Path captures are only checked for UTF-8 and length here, under the
-// capture's name; the route's own id rule (CheckId) names what else fails.
+// query names and values, header values (text.h). Throws
+// RequestError(StatusCode::kInvalidArgument). Path captures are only checked
+// for UTF-8 and length here, under the capture's name; the route's own id rule
+// (CheckId) names what else fails.
 void CheckRequestText(const HttpRequest& r, const RouteEntry& e) {
   std::size_t k = 0;
   for (const std::string& p : e.segments) {
@@ -464,12 +467,17 @@ std::optional<HttpResponse> HttpServer::Run(HttpRequest request,
         out = entry->handler(request);
       }
     } catch (const RequestError& e) {
-      json j = {{"error", ErrorTitle(e.status())}, {"detail", e.what()}};
+      const int status = HttpStatusFor(e.code());
+      json j = {{"error", ErrorTitle(status)}, {"detail", e.what()}};
       if (!e.field().empty()) j["field"] = e.field();
       if (e.extra().is_object()) {
         for (auto it = e.extra().begin(); it != e.extra().end(); ++it)
           j[it.key()] = *it;
       }
+      out = HttpResponse::Json(status, j);
+    } catch (const HttpError& e) {
+      json j = {{"error", ErrorTitle(e.status())}, {"detail", e.what()}};
+      if (!e.field().empty()) j["field"] = e.field();
       out = HttpResponse::Json(e.status(), j);
     } catch (const std::invalid_argument& e) {
       out = HttpResponse::Error(400, "bad request", e.what());

@@ -451,11 +451,13 @@ StrokeOutcome JobStrokeCollector::Fit(IdentificationJob* job,
     out.detail = std::string("identification failed: ") + e.what();
     library_.jobs().Transition(job, JobState::kFailed, out.detail);
     out.state = JobState::kFailed;
-    AuditStrokeWrite(
-        library_.store(),
-        *job,
-        sender,
-        {{"status", e.status()}, {"field", e.field()}, {"why", out.detail}});
+    AuditStrokeWrite(library_.store(),
+                     *job,
+                     sender,
+                     {{"status", HttpStatusFor(e.code())},
+                      {"code", StatusCodeName(e.code())},
+                      {"field", e.field()},
+                      {"why", out.detail}});
     Close(job->id);
   }
   return out;

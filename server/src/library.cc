@@ -21,6 +21,58 @@ namespace frictiond {
 
 using nlohmann::json;
 
+const char* StatusCodeName(StatusCode code) {
+  switch (code) {
+    case StatusCode::kInvalidArgument:
+      return "invalid_argument";
+    case StatusCode::kUnauthenticated:
+      return "unauthenticated";
+    case StatusCode::kPermissionDenied:
+      return "permission_denied";
+    case StatusCode::kNotFound:
+      return "not_found";
+    case StatusCode::kAlreadyExists:
+      return "already_exists";
+    case StatusCode::kResourceExhausted:
+      return "resource_exhausted";
+    case StatusCode::kFailedPrecondition:
+      return "failed_precondition";
+    case StatusCode::kUnavailable:
+      return "unavailable";
+    case StatusCode::kUnimplemented:
+      return "unimplemented";
+    case StatusCode::kInternal:
+      break;
+  }
+  return "internal";
+}
+
+int HttpStatusFor(StatusCode code) {
+  switch (code) {
+    case StatusCode::kInvalidArgument:
+      return 400;
+    case StatusCode::kUnauthenticated:
+      return 401;
+    case StatusCode::kPermissionDenied:
+      return 403;
+    case StatusCode::kNotFound:
+      return 404;
+    case StatusCode::kAlreadyExists:
+      return 409;
+    case StatusCode::kResourceExhausted:
+      return 413;
+    case StatusCode::kFailedPrecondition:
+      return 422;
+    case StatusCode::kUnavailable:
+      return 503;
+    case StatusCode::kUnimplemented:
+      return 501;
+    case StatusCode::kInternal:
+      break;
+  }
+  return 500;
+}
+
 bool IsValidId(const std::string& id) {
   if (id.empty() || id.size() > 64 || id == "." || id == "..") return false;
   for (char c : id) {
@@ -40,7 +92,7 @@ void CheckId(const std::string& id, const std::string& field) {
         c = '?';
     }
     throw RequestError(
-        400,
+        StatusCode::kInvalidArgument,
         field,
         field + " = '" + shown +
             "' (must match [A-Za-z0-9._-]{1,64} and not be '.' or '..')");
@@ -53,12 +105,14 @@ double ParseNumberParam(const std::string& name, const std::string& value) {
   const char* e = value.data() + value.size();
   auto [p, ec] = std::from_chars(b, e, x);
   if (value.empty() || ec != std::errc() || p != e) {
-    throw RequestError(
-        400, name, name + " = '" + ShownText(value) + "' (not a number)");
+    throw RequestError(StatusCode::kInvalidArgument,
+                       name,
+                       name + " = '" + ShownText(value) + "' (not a number)");
   }
   if (!std::isfinite(x))
-    throw RequestError(
-        400, name, name + " = '" + ShownText(value) + "' (must be finite)");
+    throw RequestError(StatusCode::kInvalidArgument,
+                       name,
+                       name + " = '" + ShownText(value) + "' (must be finite)");
   return x;
 }
 
@@ -66,7 +120,7 @@ int ParseVersionParam(const std::string& value) {
   const double x = ParseNumberParam("version", value);
   if (!(x >= 1 && x == std::floor(x) && x < 1e9))
     throw RequestError(
-        400,
+        StatusCode::kInvalidArgument,
         "version",
         "version = '" + ShownText(value) + "' (must be a positive integer)");
   return static_cast<int>(x);
@@ -91,7 +145,8 @@ std::optional<SlipLabelOptions> ParseLabelling(
   if (!any) return std::nullopt;
   std::string why;
   if (!o.IsValid(&why))
-    throw RequestError(400, why.substr(0, why.find(' ')), why);
+    throw RequestError(
+        StatusCode::kInvalidArgument, why.substr(0, why.find(' ')), why);
   return o;
 }
 
@@ -169,7 +224,9 @@ std::vector<Material> FrictionLibrary::ListMaterials() {
 Material FrictionLibrary::GetMaterial(const std::string& id) {
   CheckId(id, "id");
   auto m = store_->GetMaterial(id);
-  if (!m) throw RequestError(404, "id", "unknown material '" + id + "'");
+  if (!m)
+    throw RequestError(
+        StatusCode::kNotFound, "id", "unknown material '" + id + "'");
   return *m;
 }
 
@@ -181,13 +238,16 @@ bool FrictionLibrary::PutMaterial(const std::string& id,
     try {
       body = json::parse(json_body);
     } catch (const json::exception& e) {
-      throw RequestError(
-          400, "body", std::string("body: invalid JSON: ") + e.what());
+      throw RequestError(StatusCode::kInvalidArgument,
+                         "body",
+                         std::string("body: invalid JSON: ") + e.what());
     }
   }
   if (!body.is_object())
     throw RequestError(
-        400, "body", "body: expected a JSON object {name, description, tags}");
+        StatusCode::kInvalidArgument,
+        "body",
+        "body: expected a JSON object {name, description, tags}");
   Material m;
   m.id = id;
   if (auto old = store_->GetMaterial(id)) m = *old;
@@ -195,10 +255,11 @@ bool FrictionLibrary::PutMaterial(const std::string& id,
     const std::string& k = it.key();
     if (k == "name" || k == "description") {
       if (!it->is_string())
-        throw RequestError(400, k, k + ": expected a string");
+        throw RequestError(
+            StatusCode::kInvalidArgument, k, k + ": expected a string");
       const std::string s = it->get<std::string>();
       if (s.size() > (k == "name" ? 200u : 4000u)) {
-        throw RequestError(400,
+        throw RequestError(StatusCode::kInvalidArgument,
                            k,
                            k + ": " + std::to_string(s.size()) +
                                " characters (at most " +
@@ -207,23 +268,29 @@ bool FrictionLibrary::PutMaterial(const std::string& id,
       (k == "name" ? m.name : m.description) = s;
     } else if (k == "tags") {
       if (!it->is_array())
-        throw RequestError(400, k, "tags: expected an array of strings");
+        throw RequestError(StatusCode::kInvalidArgument,
+                           k,
+                           "tags: expected an array of strings");
       if (it->size() > 64)
         throw RequestError(
-            400,
+            StatusCode::kInvalidArgument,
             k,
             "tags: " + std::to_string(it->size()) + " tags (at most 64)");
       std::vector<std::string> tags;
       for (const auto& t : *it) {
         if (!t.is_string())
-          throw RequestError(400, k, "tags: expected an array of strings");
+          throw RequestError(StatusCode::kInvalidArgument,
+                             k,
+                             "tags: expected an array of strings");
         if (t.get<std::string>().size() > 64)
-          throw RequestError(400, k, "tags: a tag longer than 64 characters");
+          throw RequestError(StatusCode::kInvalidArgument,
+                             k,
+                             "tags: a tag longer than 64 characters");
         tags.push_back(t.get<std::string>());
       }
       m.tags = tags;
     } else {
-      throw RequestError(400,
+      throw RequestError(StatusCode::kInvalidArgument,
                          k,
                          "body: unknown field '" + k.substr(0, 64) +
                              "' (allowed: name, description, tags)");
@@ -323,7 +390,7 @@ std::shared_ptr<const CachedModel> FrictionLibrary::RequireModel(
                     {"fingertip", fingertip},
                     {"known_material", found.known_material}};
   extra["identification"] = IdentificationRequestToJson(found.identification);
-  throw RequestError(404, "id", found.message, extra);
+  throw RequestError(StatusCode::kNotFound, "id", found.message, extra);
 }
 
 StrokeData FrictionLibrary::LoadStrokes(
@@ -353,19 +420,19 @@ IngestResult FrictionLibrary::IngestStrokes(const std::string& material,
   CheckId(material, "id");
   CheckId(options.fingertip, "fingertip");
   if (options.robot.size() > 128)
-    throw RequestError(400, "robot", "robot: at most 128 characters");
+    throw RequestError(
+        StatusCode::kInvalidArgument, "robot", "robot: at most 128 characters");
   // 1. Validate the upload completely before touching the store.
   StrokeData upload;
   try {
     upload = ParseStrokeCsv(
         csv, StrokeCsvOptions{options_.max_samples_per_upload, 64});
   } catch (const StrokeCsvError& e) {
-    const int status =
-        e.field() == "body" && std::string(e.what()).find("samples (split") !=
-                                   std::string::npos
-            ? 413
-            : 400;
-    throw RequestError(status, e.field(), e.what(), json{{"line", e.line()}});
+    throw RequestError(e.too_large() ? StatusCode::kResourceExhausted
+                                     : StatusCode::kInvalidArgument,
+                       e.field(),
+                       e.what(),
+                       json{{"line", e.line()}});
   }
   // 2. One upload of the pair at a time, in arrival order.
   Ingestor::PairLock pair = ingestor_->Lock(material, options.fingertip);
@@ -389,7 +456,7 @@ IngestResult FrictionLibrary::IngestStrokes(const std::string& material,
                                 labelling);
   if (fit.status != FitStatus::kOk && fit.status != FitStatus::kPartial) {
     throw RequestError(
-        422,
+        StatusCode::kFailedPrecondition,
         "v_mm_s",
         "stroke accepted as CSV but no model can be identified: " + fit.why,
         json{{"fit_status", ToString(fit.status)}});

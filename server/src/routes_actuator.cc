@@ -33,7 +33,7 @@ void CheckAllowed(const HttpRequest& req,
     if (std::find(allowed.begin(), allowed.end(), kv.first) == allowed.end()) {
       std::string list;
       for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-      throw RequestError(400,
+      throw RequestError(StatusCode::kInvalidArgument,
                          kv.first.substr(0, 64),
                          "query parameter " + kv.first.substr(0, 64) +
                              " is not known (allowed: " + list + ")");
@@ -50,7 +50,7 @@ std::string JointParam(const HttpRequest& req) {
 void RequireJson(const HttpRequest& req) {
   const std::string ct = req.Header("Content-Type");
   if (ct.rfind("application/json", 0) != 0)
-    throw RequestError(
+    throw HttpError(
         415,
         "Content-Type",
         "Content-Type '" + ct.substr(0, 64) + "' (must be application/json)");
@@ -70,10 +70,13 @@ std::vector<ActuatorLog> ParseLogs(const std::string& body) {
   try {
     j = json::parse(body, nullptr, true, false);
   } catch (const json::exception& e) {
-    throw RequestError(400, "body", std::string("invalid JSON: ") + e.what());
+    throw RequestError(StatusCode::kInvalidArgument,
+                       "body",
+                       std::string("invalid JSON: ") + e.what());
   }
   if (!j.is_object())
-    throw RequestError(400, "body", "body must be a JSON object");
+    throw RequestError(
+        StatusCode::kInvalidArgument, "body", "body must be a JSON object");
   auto parse_one = [&](const json& x, const std::string& prefix) {
     try {
       logs.push_back(ParseActuatorLog(
@@ -85,15 +88,18 @@ std::vector<ActuatorLog> ParseLogs(const std::string& body) {
                    : "")));
     } catch (const std::invalid_argument& e) {
       const std::string f = FieldOf(e.what());
-      throw RequestError(400, prefix + f, prefix + e.what());
+      throw RequestError(
+          StatusCode::kInvalidArgument, prefix + f, prefix + e.what());
     }
   };
   if (j.contains("logs")) {
     const json& a = j["logs"];
     if (!a.is_array() || a.empty())
-      throw RequestError(400, "logs", "logs must be a non-empty array");
+      throw RequestError(StatusCode::kInvalidArgument,
+                         "logs",
+                         "logs must be a non-empty array");
     if (a.size() > kMaxLogsPerUpload)
-      throw RequestError(413,
+      throw RequestError(StatusCode::kResourceExhausted,
                          "logs",
                          "logs: " + std::to_string(a.size()) + " (limit " +
                              std::to_string(kMaxLogsPerUpload) + ")");
@@ -126,14 +132,14 @@ LoadedActuator LoadActuator(FrictionLibrary& lib, const HttpRequest& req) {
                           joint + " (application/json logs)"}};
   if (!out.model)
     throw RequestError(
-        404,
+        StatusCode::kNotFound,
         "id",
         "no actuator model for '" + id + "', joint '" + joint + "'",
         hint);
   auto it = out.model->set.other.find(kActuatorFamilyKey);
   if (it == out.model->set.other.end() || it->is_null())
     throw RequestError(
-        422,
+        StatusCode::kFailedPrecondition,
         kActuatorFamilyKey,
         "model version " + std::to_string(out.model->set.version) + " of '" +
             id + "' (joint '" + joint + "') has no actuator family",
@@ -161,12 +167,14 @@ HttpResponse HandleUpload(FrictionLibrary& lib, const HttpRequest& req) {
         law_name == "auto" ? ActuatorFrictionLawName(kAutoActuatorLaw)
                            : law_name);
   } catch (const std::invalid_argument& e) {
-    throw RequestError(400, "law", e.what());
+    throw RequestError(StatusCode::kInvalidArgument, "law", e.what());
   }
   const std::vector<ActuatorLog> logs = ParseLogs(req.body);
   const ActuatorFitResult fit = FitActuatorLaw(logs, law);
   if (!fit.converged)
-    throw RequestError(422, "logs", "identification failed: " + fit.why);
+    throw RequestError(StatusCode::kFailedPrecondition,
+                       "logs",
+                       "identification failed: " + fit.why);
   json family = ActuatorFitToJson(fit);
   json per_log = json::array();
   std::size_t samples = 0;
@@ -217,7 +225,9 @@ void RegisterActuatorRoutes(HttpServer& http, FrictionLibrary& library) {
                const LoadedActuator a = LoadActuator(library, req);
                const std::vector<ActuatorLog> logs = ParseLogs(req.body);
                if (logs.size() != 1)
-                 throw RequestError(400, "logs", "simulate takes one log");
+                 throw RequestError(StatusCode::kInvalidArgument,
+                                    "logs",
+                                    "simulate takes one log");
                return HttpResponse::Json(
                    200,
                    {{"mae_rad", SimulateActuatorLog(a.actuator, logs[0])},

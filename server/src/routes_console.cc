@@ -60,7 +60,8 @@ HttpResponse ServeConsoleFile(const std::string& name) {
         static_cast<unsigned char>(c) >= 0x7f)
       c = '?';
   }
-  throw RequestError(404, "file", "no console file '" + shown + "'");
+  throw RequestError(
+      StatusCode::kNotFound, "file", "no console file '" + shown + "'");
 }
 
 // The model version named by ?version= (or the newest). Unlike the model
@@ -74,7 +75,7 @@ std::shared_ptr<const CachedModel> FindModelFor(FrictionLibrary& lib,
     const int version = ParseVersionParam(*v);
     auto m = lib.FindModelVersion(id, fingertip, version);
     if (!m)
-      throw RequestError(404,
+      throw RequestError(StatusCode::kNotFound,
                          "version",
                          "material '" + id + "' has no model version " +
                              std::to_string(version) + " for fingertip '" +
@@ -83,7 +84,7 @@ std::shared_ptr<const CachedModel> FindModelFor(FrictionLibrary& lib,
   }
   auto m = lib.FindModel(id, fingertip);
   if (!m) {
-    throw RequestError(404,
+    throw RequestError(StatusCode::kNotFound,
                        "id",
                        "material '" + id + "' has no model for fingertip '" +
                            fingertip + "' (upload a stroke first)");
@@ -97,7 +98,7 @@ HttpResponse HandleSamples(FrictionLibrary& lib, const HttpRequest& req) {
   for (const auto& kv : req.query) {
     const std::string& k = kv.first;
     if (k != "max" && k != "fingertip" && k != "version") {
-      throw RequestError(400,
+      throw RequestError(StatusCode::kInvalidArgument,
                          k,
                          "query parameter " + k.substr(0, 64) +
                              " is not known (allowed: max, fingertip, "
@@ -109,7 +110,7 @@ HttpResponse HandleSamples(FrictionLibrary& lib, const HttpRequest& req) {
     const double x = ParseNumberParam("max", *m);
     if (!(x >= 1 && x <= 20000 && x == std::floor(x))) {
       throw RequestError(
-          400,
+          StatusCode::kInvalidArgument,
           "max",
           "max = '" + m->substr(0, 32) + "' (must be an integer in 1..20000)");
     }

@@ -42,8 +42,9 @@ std::shared_ptr<const CachedModel> ModelFor(FrictionLibrary& lib,
     CheckId(id, "id");
     auto m = lib.FindModelVersion(id, fingertip, ParseVersionParam(*v));
     if (!m)
-      throw RequestError(
-          404, "version", "material '" + id + "' has no model version " + *v);
+      throw RequestError(StatusCode::kNotFound,
+                         "version",
+                         "material '" + id + "' has no model version " + *v);
     return m;
   }
   return lib.RequireModel(id, fingertip, Requester(req));
@@ -51,7 +52,7 @@ std::shared_ptr<const CachedModel> ModelFor(FrictionLibrary& lib,
 
 const StochasticFrictionModel& Stochastic(const CachedModel& m) {
   if (!m.set.stochastic) {
-    throw RequestError(422,
+    throw RequestError(StatusCode::kFailedPrecondition,
                        "model",
                        "model version " + std::to_string(m.set.version) +
                            " has no stochastic model");
@@ -104,7 +105,7 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
       extra["identification"] = IdentificationRequestToJson(
           lib.RequestIdentification(id, "default", Requester(req)));
       throw RequestError(
-          404,
+          StatusCode::kNotFound,
           "id",
           "unknown material '" + id + "': an identification was requested",
           extra);
@@ -131,7 +132,8 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
   http.Route("DELETE", "/v1/materials/{id}", [&lib](const HttpRequest& req) {
     const std::string& id = req.params[0];
     if (!lib.DeleteMaterial(id))
-      throw RequestError(404, "id", "unknown material '" + id + "'");
+      throw RequestError(
+          StatusCode::kNotFound, "id", "unknown material '" + id + "'");
     return HttpResponse::Json(200, {{"deleted", id}});
   });
 
@@ -155,25 +157,29 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
       try {
         body = json::parse(req.body);
       } catch (const json::exception& e) {
-        throw RequestError(
-            400, "body", std::string("body: invalid JSON: ") + e.what());
+        throw RequestError(StatusCode::kInvalidArgument,
+                           "body",
+                           std::string("body: invalid JSON: ") + e.what());
       }
     }
     if (!body.is_object())
-      throw RequestError(
-          400, "body", "body: expected a JSON object {name, description}");
+      throw RequestError(StatusCode::kInvalidArgument,
+                         "body",
+                         "body: expected a JSON object {name, description}");
     Fingertip f{id, id, "", ""};
     for (auto it = body.begin(); it != body.end(); ++it) {
       if (it.key() != "name" && it.key() != "description")
-        throw RequestError(400,
+        throw RequestError(StatusCode::kInvalidArgument,
                            it.key(),
                            "body: unknown field '" + it.key().substr(0, 64) +
                                "' (allowed: name, description)");
       if (!it->is_string())
-        throw RequestError(400, it.key(), it.key() + ": expected a string");
+        throw RequestError(StatusCode::kInvalidArgument,
+                           it.key(),
+                           it.key() + ": expected a string");
       const std::string text = it->get<std::string>();
       if (text.size() > 4000)  // a JSON string is valid UTF-8 already
-        throw RequestError(400,
+        throw RequestError(StatusCode::kInvalidArgument,
                            it.key(),
                            it.key() + ": " + std::to_string(text.size()) +
                                " bytes (at most 4000)");
@@ -203,7 +209,8 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
                           {"stroke_id", r.stroke_id}});
         }
         if (list.empty() && !lib.store().GetMaterial(id))
-          throw RequestError(404, "id", "unknown material '" + id + "'");
+          throw RequestError(
+              StatusCode::kNotFound, "id", "unknown material '" + id + "'");
         return HttpResponse::Json(
             200,
             {{"material", id}, {"fingertip", fingertip}, {"versions", list}});
@@ -217,7 +224,7 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
         CheckId(id, "id");
         const std::string ct = req.Header("Content-Type");
         if (!IsCsvContentType(ct)) {
-          throw RequestError(
+          throw HttpError(
               415,
               "Content-Type",
               "Content-Type '" + ct.substr(0, 64) + "' (must be text/csv)");
@@ -276,11 +283,12 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
         const double fn = req.RequireNumber("fn_n");
         const double v = req.RequireNumber("v_mm_s");
         if (!(fn > 0))
-          throw RequestError(
-              400, "fn_n", "fn_n = " + std::to_string(fn) + " (must be > 0)");
+          throw RequestError(StatusCode::kInvalidArgument,
+                             "fn_n",
+                             "fn_n = " + std::to_string(fn) + " (must be > 0)");
         if (!(v >= 0))
           throw RequestError(
-              400,
+              StatusCode::kInvalidArgument,
               "v_mm_s",
               "v_mm_s = " + std::to_string(v) + " (must be >= 0)");
         auto model = ModelFor(lib, req);
@@ -291,7 +299,7 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
               k == "version" || k == "robot")
             continue;
           if (m.inputs.count(k) == 0) {
-            throw RequestError(400,
+            throw RequestError(StatusCode::kInvalidArgument,
                                k,
                                "query parameter " + k.substr(0, 64) +
                                    " is not an input of this model");
@@ -310,43 +318,46 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
              {"extrapolated_inputs", p.extrapolated_inputs},
              {"mu_coulomb", m.mu_coulomb}});
       });
-  http.Route(
-      "GET",
-      "/v1/materials/{id}/slip-likelihood",
-      [&lib](const HttpRequest& req) {
-        const double fn = req.RequireNumber("fn_n");
-        const double ft = req.RequireNumber("ft_n");
-        if (!(fn > 0))
-          throw RequestError(
-              400, "fn_n", "fn_n = " + std::to_string(fn) + " (must be > 0)");
-        if (!(ft >= 0))
-          throw RequestError(
-              400, "ft_n", "ft_n = " + std::to_string(ft) + " (must be >= 0)");
-        auto model = ModelFor(lib, req);
-        const StochasticFrictionModel& m = Stochastic(*model);
-        const double L = CalcSlipLikelihood(m, fn, ft);
-        const double r = ft / fn;
-        return HttpResponse::Json(
-            200,
-            {{"material", model->set.material},
-             {"version", model->set.version},
-             {"likelihood", L},
-             {"ratio", r},
-             {"method", m.likelihood.valid ? "sigmoid" : "eps_cdf"},
-             {"coulomb_slips", r >= m.mu_coulomb}});
-      });
+  http.Route("GET",
+             "/v1/materials/{id}/slip-likelihood",
+             [&lib](const HttpRequest& req) {
+               const double fn = req.RequireNumber("fn_n");
+               const double ft = req.RequireNumber("ft_n");
+               if (!(fn > 0))
+                 throw RequestError(
+                     StatusCode::kInvalidArgument,
+                     "fn_n",
+                     "fn_n = " + std::to_string(fn) + " (must be > 0)");
+               if (!(ft >= 0))
+                 throw RequestError(
+                     StatusCode::kInvalidArgument,
+                     "ft_n",
+                     "ft_n = " + std::to_string(ft) + " (must be >= 0)");
+               auto model = ModelFor(lib, req);
+               const StochasticFrictionModel& m = Stochastic(*model);
+               const double L = CalcSlipLikelihood(m, fn, ft);
+               const double r = ft / fn;
+               return HttpResponse::Json(
+                   200,
+                   {{"material", model->set.material},
+                    {"version", model->set.version},
+                    {"likelihood", L},
+                    {"ratio", r},
+                    {"method", m.likelihood.valid ? "sigmoid" : "eps_cdf"},
+                    {"coulomb_slips", r >= m.mu_coulomb}});
+             });
   http.Route(
       "GET", "/v1/materials/{id}/grip-force", [&lib](const HttpRequest& req) {
         const double load = req.RequireNumber("load_n");
         const double risk = req.RequireNumber("risk");
         if (!(load > 0))
           throw RequestError(
-              400,
+              StatusCode::kInvalidArgument,
               "load_n",
               "load_n = " + std::to_string(load) + " (must be > 0)");
         if (!(risk > 0 && risk < 1))
           throw RequestError(
-              400,
+              StatusCode::kInvalidArgument,
               "risk",
               "risk = " + std::to_string(risk) + " (must be in (0, 1))");
         // hold_s (default 0 = one instant) and v_mm_s (default 0 = at
@@ -355,12 +366,12 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
         if (req.Query("hold_s")) options.hold_s = req.RequireNumber("hold_s");
         if (req.Query("v_mm_s")) options.v_mm_s = req.RequireNumber("v_mm_s");
         if (!(options.hold_s >= 0 && options.hold_s <= 3600))
-          throw RequestError(400,
+          throw RequestError(StatusCode::kInvalidArgument,
                              "hold_s",
                              "hold_s = " + std::to_string(options.hold_s) +
                                  " (must be in [0, 3600] s)");
         if (!(options.v_mm_s >= 0) || !std::isfinite(options.v_mm_s))
-          throw RequestError(400,
+          throw RequestError(StatusCode::kInvalidArgument,
                              "v_mm_s",
                              "v_mm_s = " + std::to_string(options.v_mm_s) +
                                  " (must be finite and >= 0)");
@@ -368,17 +379,17 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
         const GripForce g =
             CalcGripForce(Stochastic(*model), load, risk, options);
         if (g.status == GripForceStatus::kUnsupportedRisk) {
-          throw RequestError(422,
+          throw RequestError(StatusCode::kFailedPrecondition,
                              "risk",
                              g.why,
                              {{"min_supported_risk", g.min_supported_risk},
                               {"hold_s", options.hold_s}});
         }
         if (g.status == GripForceStatus::kNoTimeModel)
-          throw RequestError(422, "hold_s", g.why);
+          throw RequestError(StatusCode::kFailedPrecondition, "hold_s", g.why);
         if (!g.attainable) {
           throw RequestError(
-              422,
+              StatusCode::kFailedPrecondition,
               "load_n",
               "no grip force holds load_n = " + std::to_string(load) +
                   " N at risk " + std::to_string(risk) + ": " + g.why);
@@ -413,15 +424,18 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
       const double x = ParseNumberParam("limit", *v);
       if (!(x >= 1 && x <= 1000 && x == std::floor(x)))
         throw RequestError(
-            400, "limit", "limit = " + *v + " (must be an integer in 1..1000)");
+            StatusCode::kInvalidArgument,
+            "limit",
+            "limit = " + *v + " (must be an integer in 1..1000)");
       limit = static_cast<int>(x);
     }
     std::int64_t after = 0;
     if (auto v = req.Query("after")) {
       const double x = ParseNumberParam("after", *v);
       if (!(x >= 1 && x < 9e15 && x == std::floor(x)))
-        throw RequestError(
-            400, "after", "after = " + *v + " (must be a positive job id)");
+        throw RequestError(StatusCode::kInvalidArgument,
+                           "after",
+                           "after = " + *v + " (must be a positive job id)");
       after = static_cast<std::int64_t>(x);
     }
     json list = json::array();

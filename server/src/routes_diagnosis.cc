@@ -19,7 +19,7 @@ void RegisterDiagnosisRoutes(HttpServer& http, FrictionLibrary& lib) {
         const std::string store = req.QueryOr("store", "0");
         if (store != "0" && store != "1") {
           throw RequestError(
-              400,
+              StatusCode::kInvalidArgument,
               "store",
               "store = '" + store.substr(0, 16) + "' (must be 0 or 1)");
         }
@@ -36,8 +36,9 @@ void RegisterDiagnosisRoutes(HttpServer& http, FrictionLibrary& lib) {
         if (auto seed = req.Query("seed")) {
           const double s = ParseNumberParam("seed", *seed);
           if (!(s >= 0 && s < 1e15))
-            throw RequestError(
-                400, "seed", "seed must be a non-negative integer");
+            throw RequestError(StatusCode::kInvalidArgument,
+                               "seed",
+                               "seed must be a non-negative integer");
           options.seed = static_cast<std::uint64_t>(s);
         }
         const StrokeData data =
@@ -53,8 +54,10 @@ void RegisterDiagnosisRoutes(HttpServer& http, FrictionLibrary& lib) {
                              "",
                              DiagnosisJsonOptions{true, false, false})}};
         if (result.status != DiagnosisStatus::kOk) {
-          throw RequestError(
-              422, "strokes", "cannot diagnose: " + result.why, out);
+          throw RequestError(StatusCode::kFailedPrecondition,
+                             "strokes",
+                             "cannot diagnose: " + result.why,
+                             out);
         }
         if (store == "1" && !result.findings.empty()) {
           StochasticFitOptions fit_options;
@@ -65,7 +68,7 @@ void RegisterDiagnosisRoutes(HttpServer& http, FrictionLibrary& lib) {
           const StochasticFit fit = FitStochasticModel(data, fit_options);
           if (fit.status != FitStatus::kOk &&
               fit.status != FitStatus::kPartial) {
-            throw RequestError(422,
+            throw RequestError(StatusCode::kFailedPrecondition,
                                "strokes",
                                "extended model could not be fitted: " + fit.why,
                                out);

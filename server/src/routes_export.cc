@@ -35,7 +35,7 @@ void CheckKnownParams(const HttpRequest& req,
     if (allowed.count(k) == 0) {
       std::string list;
       for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-      throw RequestError(400,
+      throw RequestError(StatusCode::kInvalidArgument,
                          k.substr(0, 64),
                          "query parameter '" + k.substr(0, 64) +
                              "' is not known here (allowed: " + list + ")");
@@ -48,7 +48,7 @@ double RiskParam(const HttpRequest& req) {
   if (!text) return kDefaultRisk;
   const double risk = ParseNumberParam("risk", *text);
   if (!(risk >= kMinSlipRisk && risk <= kMaxSlipRisk)) {
-    throw RequestError(400,
+    throw RequestError(StatusCode::kInvalidArgument,
                        "risk",
                        "risk = " + Num(risk) + " (must be in [" +
                            Num(kMinSlipRisk) + ", " + Num(kMaxSlipRisk) +
@@ -67,7 +67,7 @@ void CheckSupportedRisk(const StochasticFrictionModel& m,
                         const std::string& material) {
   const double min_risk = CalcMinSupportedRisk(m, 0.0);
   if (risk < min_risk) {
-    throw RequestError(422,
+    throw RequestError(StatusCode::kFailedPrecondition,
                        "risk",
                        "risk = " + Num(risk) +
                            " is below the smallest risk the data of '" +
@@ -87,14 +87,16 @@ OperatingPointParams OperatingPointQuery(const HttpRequest& req) {
   if (auto t = req.Query("fn_n")) {
     p.fn_n = ParseNumberParam("fn_n", *t);
     if (!(*p.fn_n > 0))
-      throw RequestError(
-          400, "fn_n", "fn_n = " + Num(*p.fn_n) + " (must be > 0)");
+      throw RequestError(StatusCode::kInvalidArgument,
+                         "fn_n",
+                         "fn_n = " + Num(*p.fn_n) + " (must be > 0)");
   }
   if (auto t = req.Query("v_mm_s")) {
     p.v_mm_s = ParseNumberParam("v_mm_s", *t);
     if (!(*p.v_mm_s >= 0))
-      throw RequestError(
-          400, "v_mm_s", "v_mm_s = " + Num(*p.v_mm_s) + " (must be >= 0)");
+      throw RequestError(StatusCode::kInvalidArgument,
+                         "v_mm_s",
+                         "v_mm_s = " + Num(*p.v_mm_s) + " (must be >= 0)");
   }
   return p;
 }
@@ -105,7 +107,7 @@ double FittedMean(const StochasticFrictionModel& m,
                   const std::string& material) {
   auto it = m.inputs.find(input);
   if (it == m.inputs.end()) {
-    throw RequestError(400,
+    throw RequestError(StatusCode::kInvalidArgument,
                        input,
                        "query parameter " + input +
                            " is required: the model of '" + material +
@@ -118,7 +120,7 @@ double FittedMean(const StochasticFrictionModel& m,
 // name the material they were asked for.
 const StochasticFrictionModel& StochasticNamingMaterial(const CachedModel& m) {
   if (!m.set.stochastic) {
-    throw RequestError(422,
+    throw RequestError(StatusCode::kFailedPrecondition,
                        "model",
                        "model version " + std::to_string(m.set.version) +
                            " of '" + m.set.material +
@@ -161,7 +163,7 @@ HttpResponse Export(FrictionLibrary& lib, const HttpRequest& req) {
   // request records no identification job).
   const auto format_text = req.Query("format");
   if (!format_text) {
-    throw RequestError(400,
+    throw RequestError(StatusCode::kInvalidArgument,
                        "format",
                        "query parameter format is required (one of mjcf, "
                        "sdf, urdf, usd, isaac)");
@@ -170,7 +172,7 @@ HttpResponse Export(FrictionLibrary& lib, const HttpRequest& req) {
   try {
     format = ParseSimFormat(*format_text);
   } catch (const std::invalid_argument& e) {
-    throw RequestError(400, "format", e.what());
+    throw RequestError(StatusCode::kInvalidArgument, "format", e.what());
   }
   const double risk = RiskParam(req);
   const std::string fingertip = FingertipParam(req);
@@ -185,7 +187,7 @@ HttpResponse Export(FrictionLibrary& lib, const HttpRequest& req) {
   if (version) {
     model = lib.FindModelVersion(id, fingertip, *version);
     if (!model)
-      throw RequestError(404,
+      throw RequestError(StatusCode::kNotFound,
                          "version",
                          "material '" + id + "' has no model version " +
                              std::to_string(*version) + " for fingertip '" +
@@ -232,7 +234,7 @@ HttpResponse PairFriction(FrictionLibrary& lib, const HttpRequest& req) {
     try {
       rule = ParseCombineRule(*r);
     } catch (const std::invalid_argument& e) {
-      throw RequestError(400, "rule", e.what());
+      throw RequestError(StatusCode::kInvalidArgument, "rule", e.what());
     }
   }
   const std::string reference = req.QueryOr("reference", "default");
@@ -282,7 +284,7 @@ HttpResponse PairFriction(FrictionLibrary& lib, const HttpRequest& req) {
     extra["identification"] = IdentificationRequestToJson(
         lib.RequestIdentification(object, tip, Requester(req)));
     throw RequestError(
-        404,
+        StatusCode::kNotFound,
         !ma ? "fingertip" : "object",
         "pair (fingertip '" + tip + "', object '" + object +
             "') was not measured, and material '" + (!ma ? tip : object) +

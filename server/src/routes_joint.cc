@@ -57,7 +57,7 @@ std::string FieldOf(const std::string& message) {
                            const std::string& fallback_field) {
   std::string field = FieldOf(e.what());
   if (field.empty()) field = fallback_field;
-  throw RequestError(400, field, e.what());
+  throw RequestError(StatusCode::kInvalidArgument, field, e.what());
 }
 
 void CheckAllowed(const HttpRequest& req,
@@ -66,7 +66,7 @@ void CheckAllowed(const HttpRequest& req,
     if (std::find(allowed.begin(), allowed.end(), kv.first) == allowed.end()) {
       std::string list;
       for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-      throw RequestError(400,
+      throw RequestError(StatusCode::kInvalidArgument,
                          kv.first.substr(0, 64),
                          "query parameter " + kv.first.substr(0, 64) +
                              " is not known (allowed: " + list + ")");
@@ -77,7 +77,9 @@ void CheckAllowed(const HttpRequest& req,
 double PositiveParam(const HttpRequest& req, const std::string& name) {
   const double x = req.RequireNumber(name);
   if (!(x > 0))
-    throw RequestError(400, name, name + " = " + Num(x) + " (must be > 0)");
+    throw RequestError(StatusCode::kInvalidArgument,
+                       name,
+                       name + " = " + Num(x) + " (must be > 0)");
   return x;
 }
 
@@ -117,7 +119,7 @@ HttpResponse HandleUpload(FrictionLibrary& lib, const HttpRequest& req) {
   const std::string joint = JointParam(req);
   const std::string ct = req.Header("Content-Type");
   if (ct.rfind("text/csv", 0) != 0)
-    throw RequestError(
+    throw HttpError(
         415,
         "Content-Type",
         "Content-Type '" + ct.substr(0, 64) + "' (must be text/csv)");
@@ -139,21 +141,22 @@ HttpResponse HandleUpload(FrictionLibrary& lib, const HttpRequest& req) {
   double folds = 5;
   OptionalParam(req, "folds", &folds);
   if (!(folds >= 2 && folds <= 20 && folds == std::floor(folds)))
-    throw RequestError(
-        400, "folds", "folds = " + Num(folds) + " (must be an integer 2..20)");
+    throw RequestError(StatusCode::kInvalidArgument,
+                       "folds",
+                       "folds = " + Num(folds) + " (must be an integer 2..20)");
   if (!(c.contact.area_mm2 > 0))
     throw RequestError(
-        400,
+        StatusCode::kInvalidArgument,
         "area_mm2",
         "area_mm2 = " + Num(c.contact.area_mm2) + " (must be > 0)");
   if (!(family.wear.k_solid >= 0))
     throw RequestError(
-        400,
+        StatusCode::kInvalidArgument,
         "k_solid",
         "k_solid = " + Num(family.wear.k_solid) + " (must be >= 0)");
   if (!(family.wear.hardness_mpa > 0))
     throw RequestError(
-        400,
+        StatusCode::kInvalidArgument,
         "hardness_mpa",
         "hardness_mpa = " + Num(family.wear.hardness_mpa) + " (must be > 0)");
   JointData data;
@@ -166,7 +169,7 @@ HttpResponse HandleUpload(FrictionLibrary& lib, const HttpRequest& req) {
     BadInput(e, "body");
   }
   if (data.size() < static_cast<std::size_t>(kMinJointSamples))
-    throw RequestError(422,
+    throw RequestError(StatusCode::kFailedPrecondition,
                        "body",
                        std::to_string(data.size()) + " samples (at least " +
                            std::to_string(kMinJointSamples) + " needed)");
@@ -226,14 +229,14 @@ LoadedFamily LoadFamily(FrictionLibrary& lib,
                                  "load_n, mu, temp_c or eta_pa_s)"}};
   if (!out.model)
     throw RequestError(
-        404,
+        StatusCode::kNotFound,
         "id",
         "no joint model for material '" + material + "', joint '" + joint + "'",
         upload_hint);
   auto it = out.model->set.other.find(kJointFamilyKey);
   if (it == out.model->set.other.end() || it->is_null())
     throw RequestError(
-        422,
+        StatusCode::kFailedPrecondition,
         kJointFamilyKey,
         "model version " + std::to_string(out.model->set.version) + " of '" +
             material + "' (joint '" + joint + "') has no joint family",
@@ -263,12 +266,14 @@ JointQueryState ParseState(const HttpRequest& req, const JointConfig& c) {
     s.temp_c = req.RequireNumber("temp_c");
     s.eta_pa_s = CalcViscosity(c.lubricant, s.temp_c);
     if (!(s.eta_pa_s > 0 && std::isfinite(s.eta_pa_s)))
-      throw RequestError(400,
+      throw RequestError(StatusCode::kInvalidArgument,
                          "temp_c",
                          "temp_c = " + Num(s.temp_c) +
                              " (outside the lubricant's Vogel range)");
   } else {
-    throw RequestError(400, "temp_c", "temp_c or eta_pa_s is required");
+    throw RequestError(StatusCode::kInvalidArgument,
+                       "temp_c",
+                       "temp_c or eta_pa_s is required");
   }
   s.s_um = CalcSommerfeldUm(s.eta_pa_s, s.v_mm_s, s.load_n, c.contact);
   return s;
@@ -330,7 +335,7 @@ HttpResponse HandleFriction(FrictionLibrary& lib, const HttpRequest& req) {
   }
   body["classic"] = classic;
   if (!Usable(f.mixed)) {
-    throw RequestError(422,
+    throw RequestError(StatusCode::kFailedPrecondition,
                        "joint",
                        "the mixed model of this joint is not identified (" +
                            ToString(f.mixed.status) +
@@ -373,12 +378,13 @@ HttpResponse HandleWear(FrictionLibrary& lib, const HttpRequest& req) {
   OptionalParam(req, "points", &points);
   if (!(points >= 2 && points <= 1000 && points == std::floor(points)))
     throw RequestError(
-        400,
+        StatusCode::kInvalidArgument,
         "points",
         "points = " + Num(points) + " (must be an integer 2..1000)");
   if (!Usable(f.mixed))
-    throw RequestError(
-        422, "joint", "the mixed model of this joint is not identified");
+    throw RequestError(StatusCode::kFailedPrecondition,
+                       "joint",
+                       "the mixed model of this joint is not identified");
   std::vector<WearPoint> run;
   try {
     run = PredictWearDrift(f.mixed.theta.head<4>(),
@@ -412,7 +418,7 @@ RobotDescription LoadRobot(FrictionLibrary& lib, const std::string& id) {
   CheckId(id, "id");
   auto rec = lib.store().GetRobot(id);
   if (!rec)
-    throw RequestError(404,
+    throw RequestError(StatusCode::kNotFound,
                        "id",
                        "robot '" + id + "' is not known (PUT /v1/robots/" + id +
                            " with its DH parameters and joint stiffness)");
@@ -439,10 +445,11 @@ json ResolveFriction(FrictionLibrary& lib, RobotDescription* robot) {
     try {
       lf = LoadFamily(lib, ref.material, ref.joint, nullptr);
     } catch (const RequestError& e) {
-      throw RequestError(422, at, at + ": " + e.what());
+      throw RequestError(
+          StatusCode::kFailedPrecondition, at, at + ": " + e.what());
     }
     if (!Usable(lf.family.mixed))
-      throw RequestError(422,
+      throw RequestError(StatusCode::kFailedPrecondition,
                          at,
                          at + ": the mixed model of '" + ref.material +
                              "' joint '" + ref.joint + "' is not identified");
@@ -476,8 +483,9 @@ double Probability(const HttpRequest& req) {
   double c = 0.95;
   OptionalParam(req, "probability", &c);
   if (!(c > 0 && c < 1))
-    throw RequestError(
-        400, "probability", "probability = " + Num(c) + " (must be in (0, 1))");
+    throw RequestError(StatusCode::kInvalidArgument,
+                       "probability",
+                       "probability = " + Num(c) + " (must be in (0, 1))");
   return c;
 }
 
@@ -492,7 +500,7 @@ HttpResponse HandleRepeatability(FrictionLibrary& lib, const HttpRequest& req) {
   const json sources = ResolveFriction(lib, &robot);
   const IkResult ik = SolvePositionIk(robot.arm, target, robot.q_home);
   if (!ik.converged)
-    throw RequestError(422,
+    throw RequestError(StatusCode::kFailedPrecondition,
                        "x_mm",
                        "(" + Num(target[0]) + ", " + Num(target[1]) + ", " +
                            Num(target[2]) + ") mm: " + ik.why);
@@ -534,11 +542,13 @@ HttpResponse HandleGrid(FrictionLibrary& lib, const HttpRequest& req) {
   OptionalParam(req, "size_mm", &size);
   OptionalParam(req, "n", &n);
   if (!(size > 0 && size <= 1e5))
-    throw RequestError(
-        400, "size_mm", "size_mm = " + Num(size) + " (must be in (0, 1e5])");
+    throw RequestError(StatusCode::kInvalidArgument,
+                       "size_mm",
+                       "size_mm = " + Num(size) + " (must be in (0, 1e5])");
   if (!(n >= 2 && n <= 100 && n == std::floor(n)))
-    throw RequestError(
-        400, "n", "n = " + Num(n) + " (must be an integer 2..100)");
+    throw RequestError(StatusCode::kInvalidArgument,
+                       "n",
+                       "n = " + Num(n) + " (must be an integer 2..100)");
   const double c = Probability(req);
   RobotDescription robot = LoadRobot(lib, id);
   const json sources = ResolveFriction(lib, &robot);
@@ -573,8 +583,9 @@ HttpResponse HandlePutRobot(FrictionLibrary& lib, const HttpRequest& req) {
   try {
     j = json::parse(req.body);
   } catch (const json::exception& e) {
-    throw RequestError(
-        400, "body", std::string("body is not JSON: ") + e.what());
+    throw RequestError(StatusCode::kInvalidArgument,
+                       "body",
+                       std::string("body is not JSON: ") + e.what());
   }
   RobotDescription robot;
   try {
@@ -586,13 +597,13 @@ HttpResponse HandlePutRobot(FrictionLibrary& lib, const HttpRequest& req) {
     if (!robot.friction[i]) continue;
     const std::string at = "joints[" + std::to_string(i) + "].friction.";
     if (!IsValidId(robot.friction[i]->material))
-      throw RequestError(400,
+      throw RequestError(StatusCode::kInvalidArgument,
                          at + "material",
                          at + "material = '" +
                              robot.friction[i]->material.substr(0, 64) +
                              "' (must match [A-Za-z0-9._-]{1,64})");
     if (!IsValidId(robot.friction[i]->joint))
-      throw RequestError(400,
+      throw RequestError(StatusCode::kInvalidArgument,
                          at + "joint",
                          at + "joint = '" +
                              robot.friction[i]->joint.substr(0, 64) +

@@ -32,8 +32,9 @@ double PositiveParam(const HttpRequest& req,
                      const std::string& unit) {
   const double x = req.RequireNumber(name);
   if (!(x > 0))
-    throw RequestError(
-        400, name, name + " = " + Num(x) + " (must be > 0" + unit + ")");
+    throw RequestError(StatusCode::kInvalidArgument,
+                       name,
+                       name + " = " + Num(x) + " (must be > 0" + unit + ")");
   return x;
 }
 
@@ -45,7 +46,7 @@ HttpResponse HandleBreakaway(FrictionLibrary& lib, const HttpRequest& req) {
                      std::end(kAllowed),
                      [&key = key](const char* a) { return key == a; }) ==
         std::end(kAllowed)) {
-      throw RequestError(400,
+      throw RequestError(StatusCode::kInvalidArgument,
                          key,
                          "query parameter " + key.substr(0, 64) +
                              " is not known (allowed: rho, fn_n, mass_kg, "
@@ -59,7 +60,7 @@ HttpResponse HandleBreakaway(FrictionLibrary& lib, const HttpRequest& req) {
     options.mass_kg = PositiveParam(req, "mass_kg", " [kg]");
     if (!(options.mass_kg <= 1e4))
       throw RequestError(
-          400,
+          StatusCode::kInvalidArgument,
           "mass_kg",
           "mass_kg = " + Num(options.mass_kg) + " (must be <= 10000 [kg])");
   }
@@ -68,7 +69,7 @@ HttpResponse HandleBreakaway(FrictionLibrary& lib, const HttpRequest& req) {
   auto it = model->set.other.find(kLuGreFamilyKey);
   if (it == model->set.other.end() || it->is_null()) {
     throw RequestError(
-        422,
+        StatusCode::kFailedPrecondition,
         kLuGreFamilyKey,
         "model version " + std::to_string(model->set.version) + " of '" + id +
             "' has no LuGre family (lugre): upload a low-acceleration "

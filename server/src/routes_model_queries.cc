@@ -29,7 +29,7 @@ double ForceParam(const HttpRequest& req,
                   bool strict) {
   const double x = req.RequireNumber(name);
   if (strict ? !(x > 0) : !(x >= 0)) {
-    throw RequestError(400,
+    throw RequestError(StatusCode::kInvalidArgument,
                        name,
                        name + " = " + std::to_string(x) +
                            (strict ? " (must be > 0)" : " (must be >= 0)"));
@@ -48,7 +48,7 @@ InputValues CovariateParams(const HttpRequest& req,
     for (const char* o : own) skip = skip || k == o;
     if (skip) continue;
     if (m.inputs.count(k) == 0 || k == "fn_n" || k == "v_mm_s") {
-      throw RequestError(400,
+      throw RequestError(StatusCode::kInvalidArgument,
                          k,
                          "query parameter " + k.substr(0, 64) +
                              " is not known here nor an input of this model");
@@ -86,7 +86,7 @@ HttpResponse HandleSlidingSpeed(FrictionLibrary& lib, const HttpRequest& req) {
   const InputValues cov = CovariateParams(req, m, {"fn_n", "ft_n"});
   const SlidingSpeed s = PredictSlidingSpeed(m, fn, ft, cov);
   if (s.status != SlidingSpeedStatus::kOk) {
-    throw RequestError(422,
+    throw RequestError(StatusCode::kFailedPrecondition,
                        "model",
                        "model version " + std::to_string(model->set.version) +
                            " cannot predict a sliding speed (" +
@@ -131,8 +131,9 @@ HttpResponse HandleConditional(FrictionLibrary& lib, const HttpRequest& req) {
   const bool has_ft = req.Query("ft_n").has_value();
   const bool has_ratio = req.Query("ratio").has_value();
   if (has_ft == has_ratio) {
-    throw RequestError(
-        400, "ft_n", "give exactly one of ft_n [N] and ratio (Ft/Fn)");
+    throw RequestError(StatusCode::kInvalidArgument,
+                       "ft_n",
+                       "give exactly one of ft_n [N] and ratio (Ft/Fn)");
   }
   const double ratio = has_ft ? ForceParam(req, "ft_n", false) / fn
                               : ForceParam(req, "ratio", false);
@@ -140,7 +141,7 @@ HttpResponse HandleConditional(FrictionLibrary& lib, const HttpRequest& req) {
     const std::string& k = kv.first;
     if (k != "fn_n" && k != "ft_n" && k != "ratio" && k != "fingertip" &&
         k != "version" && k != "robot") {
-      throw RequestError(400,
+      throw RequestError(StatusCode::kInvalidArgument,
                          k,
                          "query parameter " + k.substr(0, 64) +
                              " is not known (allowed: fn_n, ft_n or ratio, "
@@ -152,7 +153,7 @@ HttpResponse HandleConditional(FrictionLibrary& lib, const HttpRequest& req) {
   auto it = model->set.other.find(kConditionalKey);
   if (it == model->set.other.end() || it->is_null()) {
     throw RequestError(
-        422,
+        StatusCode::kFailedPrecondition,
         kConditionalKey,
         "model version " + std::to_string(model->set.version) +
             " has no conditional slip likelihood (slip_likelihood_fn): no Fn "
@@ -218,7 +219,7 @@ void CheckKnownParams(const HttpRequest& req,
     bool ok = k == "fingertip" || k == "version" || k == "robot";
     for (const char* a : allowed) ok = ok || k == a;
     if (!ok) {
-      throw RequestError(400,
+      throw RequestError(StatusCode::kInvalidArgument,
                          k,
                          "query parameter " + k.substr(0, 64) +
                              " is not known (allowed: " + allowed_text +
@@ -237,7 +238,7 @@ int IntParam(const HttpRequest& req,
   if (!v) return fallback;
   const double x = ParseNumberParam(name, *v);
   if (!(x >= lo && x <= hi && x == std::floor(x))) {
-    throw RequestError(400,
+    throw RequestError(StatusCode::kInvalidArgument,
                        name,
                        name + " = '" + v->substr(0, 32) +
                            "' (must be an integer in " + std::to_string(lo) +
@@ -266,14 +267,16 @@ std::vector<double> WidthsParam(const HttpRequest& req,
       x = ParseNumberParam(name, item);
     }
     if (!(x > 0)) {
-      throw RequestError(400,
+      throw RequestError(StatusCode::kInvalidArgument,
                          name,
                          name + " has width " + item.substr(0, 32) +
                              " (each must be > 0 or inf)");
     }
     out.push_back(x);
     if (out.size() > 100)
-      throw RequestError(400, name, name + " has more than 100 widths");
+      throw RequestError(StatusCode::kInvalidArgument,
+                         name,
+                         name + " has more than 100 widths");
     start = end + 1;
   }
   return out;
@@ -379,15 +382,16 @@ HttpResponse HandleForms(FrictionLibrary& lib, const HttpRequest& req) {
   if (auto f = req.Query("folds")) {
     const double x = ParseNumberParam("folds", *f);
     if (!(x >= 2 && x <= 50 && x == std::floor(x))) {
-      throw RequestError(
-          400, "folds", "folds = '" + *f + "' (must be an integer in 2..50)");
+      throw RequestError(StatusCode::kInvalidArgument,
+                         "folds",
+                         "folds = '" + *f + "' (must be an integer in 2..50)");
     }
     folds = static_cast<int>(x);
   }
   for (const auto& kv : req.query) {
     const std::string& k = kv.first;
     if (k != "folds" && k != "fingertip" && k != "version" && k != "robot") {
-      throw RequestError(400,
+      throw RequestError(StatusCode::kInvalidArgument,
                          k,
                          "query parameter " + k.substr(0, 64) +
                              " is not known (allowed: folds, fingertip, "

@@ -46,10 +46,10 @@ std::string ImageMime(const HttpRequest& req) {
   if (ct == "image/png" || ct == "image/jpeg" ||
       ct == "application/octet-stream" || ct.empty())
     return ct;
-  throw RequestError(415,
-                     "Content-Type",
-                     "Content-Type '" + ct.substr(0, 64) +
-                         "' (must be image/png or image/jpeg)");
+  throw HttpError(415,
+                  "Content-Type",
+                  "Content-Type '" + ct.substr(0, 64) +
+                      "' (must be image/png or image/jpeg)");
 }
 
 }  // namespace
@@ -100,7 +100,7 @@ RecognizeImageFn RegisterRecognitionRoutes(HttpServer& http,
                CheckId(id, "id");
                const std::string mime = ImageMime(req);
                if (!lib.store().GetMaterial(id)) {
-                 throw RequestError(404,
+                 throw RequestError(StatusCode::kNotFound,
                                     "id",
                                     "unknown material '" + id +
                                         "' (create it with PUT /v1/materials/" +
@@ -110,7 +110,8 @@ RecognizeImageFn RegisterRecognitionRoutes(HttpServer& http,
                try {
                  features = recognizer->ExtractFeatures(req.body);
                } catch (const std::invalid_argument& e) {
-                 throw RequestError(400, "body", e.what());
+                 throw RequestError(
+                     StatusCode::kInvalidArgument, "body", e.what());
                }
                ImageRecord rec;
                rec.material = id;
@@ -131,7 +132,7 @@ RecognizeImageFn RegisterRecognitionRoutes(HttpServer& http,
         try {
           r = recognizer->Recognize(req.body);
         } catch (const std::invalid_argument& e) {
-          throw RequestError(400, "body", e.what());
+          throw RequestError(StatusCode::kInvalidArgument, "body", e.what());
         }
         json candidates = json::array();
         for (const RecognitionCandidate& c : r.candidates) {

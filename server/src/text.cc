@@ -52,7 +52,7 @@ void CheckText(std::string_view text,
                const std::string& field,
                std::size_t max_bytes) {
   if (text.size() > max_bytes)
-    throw RequestError(400,
+    throw RequestError(StatusCode::kInvalidArgument,
                        field,
                        field + ": " + std::to_string(text.size()) +
                            " bytes (must be at most " +
@@ -60,12 +60,12 @@ void CheckText(std::string_view text,
   for (std::size_t i = 0; i < text.size();) {
     const std::size_t n = Utf8SequenceLength(text, i);
     if (n == 0)
-      throw RequestError(400,
+      throw RequestError(StatusCode::kInvalidArgument,
                          field,
                          field + ": invalid UTF-8 at byte " +
                              std::to_string(i) + " (must be valid UTF-8)");
     if (n == 1 && IsControl(static_cast<unsigned char>(text[i])))
-      throw RequestError(400,
+      throw RequestError(StatusCode::kInvalidArgument,
                          field,
                          field + ": control character at byte " +
                              std::to_string(i) + " (must be printable text)");

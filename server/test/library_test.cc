@@ -72,7 +72,7 @@ TEST_F(LibraryTest, NoSlipIsUnprocessableAndStoresNothing) {
     lib_.IngestStrokes("glass", csv, {});
     FAIL() << "accepted a stroke without slip";
   } catch (const RequestError& e) {
-    EXPECT_EQ(e.status(), 422);
+    EXPECT_EQ(e.code(), StatusCode::kFailedPrecondition);
     EXPECT_NE(std::string(e.what()).find("slipping samples"), std::string::npos)
         << e.what();
   }
@@ -86,7 +86,7 @@ TEST_F(LibraryTest, BadCsvNamesLineAndFieldAndStoresNothing) {
         "felt", "t_s,fn_n,ft_n,v_mm_s\n0,1,1,0\n0.1,-2,1,0\n", {});
     FAIL();
   } catch (const RequestError& e) {
-    EXPECT_EQ(e.status(), 400);
+    EXPECT_EQ(e.code(), StatusCode::kInvalidArgument);
     EXPECT_EQ(e.field(), "fn_n");
     EXPECT_EQ(e.extra()["line"], 3);
   }

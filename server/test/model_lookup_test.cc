@@ -61,7 +61,7 @@ TEST_F(ModelLookupTest, UnknownPairRecordsAnIdentification) {
     lib_.RequireModel("cork", "default", "robot-1");
     FAIL() << "no model, but RequireModel returned";
   } catch (const RequestError& e) {
-    EXPECT_EQ(e.status(), 404);
+    EXPECT_EQ(e.code(), StatusCode::kNotFound);
     EXPECT_EQ(std::string(e.what()), cork.message);
     EXPECT_EQ(e.extra()["identification"]["job_id"],
               cork.identification.job_id);

@@ -33,7 +33,7 @@ TEST(TextTest, CheckTextNamesTheFieldAndRule) {
     CheckText("ab\xC3", "robot");
     FAIL() << "no throw";
   } catch (const RequestError& e) {
-    EXPECT_EQ(e.status(), 400);
+    EXPECT_EQ(e.code(), StatusCode::kInvalidArgument);
     EXPECT_EQ(e.field(), "robot");
     EXPECT_NE(std::string(e.what()).find("invalid UTF-8 at byte 2"),
               std::string::npos)

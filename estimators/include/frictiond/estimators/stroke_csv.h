@@ -20,13 +20,17 @@ class StrokeCsvError : public std::invalid_argument {
  public:
   StrokeCsvError(std::size_t line,
                  std::string field,
-                 const std::string& message);
+                 const std::string& message,
+                 bool too_large = false);
   std::size_t line() const { return line_; }
   const std::string& field() const { return field_; }
+  /// True when the input broke a size limit (StrokeCsvOptions), not a rule.
+  bool too_large() const { return too_large_; }
 
  private:
   std::size_t line_;
   std::string field_;
+  bool too_large_ = false;
 };
 
 /// Limits applied while parsing.

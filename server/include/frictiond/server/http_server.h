@@ -3,21 +3,41 @@
 /// HTTP front end. Routes are registered as transport-neutral handlers
 /// (HttpRequest -> HttpResponse), so feature modules add routes without
 /// touching the HTTP library, and handlers are testable without sockets.
-/// A handler reports the caller's mistakes by throwing RequestError; the
-/// server turns it into {"error", "detail", "field", ...} with its status.
+/// A handler reports the caller's mistakes by throwing RequestError (a
+/// canonical StatusCode, request_error.h); the server maps the code to an
+/// HTTP status in one place (HttpStatusFor) and answers {"error", "detail",
+/// "field", ...}. HttpError is for what only HTTP has (415 media type).
 
 #include <functional>
 #include <map>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "frictiond/server/metrics.h"
+#include "frictiond/server/request_error.h"
 
 namespace frictiond {
+
+/// An error only the HTTP transport has (e.g. 415: the Content-Type of the
+/// body is not one the route reads); `field` names the header.
+class HttpError : public std::runtime_error {
+ public:
+  HttpError(int status, std::string field, const std::string& message)
+      : std::runtime_error(message),
+        status_(status),
+        field_(std::move(field)) {}
+  int status() const { return status_; }
+  const std::string& field() const { return field_; }
+
+ private:
+  int status_;
+  std::string field_;
+};
 
 /// One HTTP request, as handlers see it.
 struct HttpRequest {
@@ -39,7 +59,8 @@ struct HttpRequest {
   /// Query parameter or a default.
   std::string QueryOr(const std::string& name,
                       const std::string& fallback) const;
-  /// Required finite number. @throws RequestError(400) naming the parameter.
+  /// Required finite number. @throws RequestError(StatusCode::kInvalidArgument)
+  /// naming the parameter.
   double RequireNumber(const std::string& name) const;
   /// Header value ("" when absent; names are case-insensitive).
   std::string Header(const std::string& name) const;

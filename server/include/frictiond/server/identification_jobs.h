@@ -108,8 +108,8 @@ class IdentificationJobs {
   /// store without bound: an open job of the pair is reused, and a new one
   /// stops at max_open_requests (all) and max_open_requests_per_requester;
   /// then nothing is stored and the result says why.
-  /// @throws RequestError(400) when `requested_by` is not valid text
-  /// (text.h; at most 128 bytes).
+  /// @throws RequestError(StatusCode::kInvalidArgument) when `requested_by` is
+  /// not valid text (text.h; at most 128 bytes).
   IdentificationRequest Request(const std::string& material,
                                 const std::string& fingertip,
                                 const std::string& requested_by);

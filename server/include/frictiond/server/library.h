@@ -107,11 +107,13 @@ class FrictionLibrary {
 
   // --- materials ----------------------------------------------------------
   std::vector<Material> ListMaterials();
-  /// @throws RequestError(404) when unknown (no identification is requested).
+  /// @throws RequestError(StatusCode::kNotFound) when unknown (no
+  /// identification is requested).
   Material GetMaterial(const std::string& id);
   /// Creates or updates from the contract's JSON body
   /// {"name","description","tags"}.
-  /// @return true when created. @throws RequestError(400) naming the field.
+  /// @return true when created. @throws
+  /// RequestError(StatusCode::kInvalidArgument) naming the field.
   bool PutMaterial(const std::string& id, const std::string& json_body);
   /// @return false when it did not exist.
   bool DeleteMaterial(const std::string& id);
@@ -123,8 +125,8 @@ class FrictionLibrary {
   /// A given version, or nullptr.
   std::shared_ptr<const CachedModel> FindModelVersion(
       const std::string& material, const std::string& fingertip, int version);
-  /// Newest model, or throws RequestError(404) whose extra() holds the
-  /// identification request (job and stroke plan) it recorded.
+  /// Newest model, or throws RequestError(StatusCode::kNotFound) whose extra()
+  /// holds the identification request (job and stroke plan) it recorded.
   std::shared_ptr<const CachedModel> RequireModel(
       const std::string& material,
       const std::string& fingertip,
@@ -133,8 +135,8 @@ class FrictionLibrary {
   /// (IdentificationJobs::Request): requested with the job, or not
   /// requested with the reason when a cap of LibraryOptions is reached
   /// (nothing is stored then). identification_json.h gives its JSON.
-  /// @throws RequestError(400) when `requested_by` is not valid text
-  /// (text.h; at most 128 bytes).
+  /// @throws RequestError(StatusCode::kInvalidArgument) when `requested_by` is
+  /// not valid text (text.h; at most 128 bytes).
   IdentificationRequest RequestIdentification(const std::string& material,
                                               const std::string& fingertip,
                                               const std::string& requested_by);
@@ -274,7 +276,7 @@ class FrictionLibrary {
 /// Parses slip-labelling overrides from query-style parameters
 /// (slip_peak_mm_s, slip_floor_mm_s, median_window_s, max_fn_n, max_v_mm_s).
 /// `get` returns the raw value or nullopt. Returns nullopt when none is given.
-/// @throws RequestError(400) naming the parameter.
+/// @throws RequestError(StatusCode::kInvalidArgument) naming the parameter.
 std::optional<SlipLabelOptions> ParseLabelling(
     const std::function<std::optional<std::string>(const std::string&)>& get,
     const SlipLabelOptions& base);

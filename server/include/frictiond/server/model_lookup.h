@@ -42,8 +42,8 @@ struct ModelLookup {
 /// The newest model of (material, fingertip), or kUnknown with the
 /// identification request recorded for `requested_by` (the caps of
 /// LibraryOptions apply) and the message the HTTP 404 shows.
-/// @throws RequestError(400) for an invalid material ("id"), fingertip or
-/// requested_by ("robot"); store failures propagate.
+/// @throws RequestError(StatusCode::kInvalidArgument) for an invalid material
+/// ("id"), fingertip or requested_by ("robot"); store failures propagate.
 ModelLookup LookUpModel(FrictionLibrary& library,
                         const std::string& material,
                         const std::string& fingertip,

@@ -25,8 +25,8 @@ bool IsValidUtf8(std::string_view text);
 
 /// Checks stored or echoed text: valid UTF-8, at most `max_bytes` bytes,
 /// no control characters (below U+0020 except tab, and U+007F).
-/// @throws RequestError(400) naming `field`, the byte offset and the rule;
-/// the message never quotes the offending bytes.
+/// @throws RequestError(StatusCode::kInvalidArgument) naming `field`, the byte
+/// offset and the rule; the message never quotes the offending bytes.
 void CheckText(std::string_view text,
                const std::string& field,
                std::size_t max_bytes = kMaxNameBytes);
