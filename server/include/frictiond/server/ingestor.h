@@ -53,8 +53,8 @@ struct IngestorOptions {
   /// pairs' caches are dropped (reloaded from the store on their next
   /// upload). The pair being ingested is always kept, so one pair whose
   /// history is above the cap stays cached while it is the one in use.
-  /// About 80 bytes per sample without covariates (~160 MB at the default).
-  std::size_t cache_sample_cap = 2'000'000;
+  /// About 80 bytes per sample without covariates (~40 MB at the default).
+  std::size_t cache_sample_cap = 500'000;
   /// Largest upload a stored stroke may be (parser limit).
   std::size_t max_samples_per_upload = 5'000'000;
 };
