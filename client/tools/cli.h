@@ -56,8 +56,8 @@ void RegisterActuatorCommands(CLI::App& app,
                               Globals& g);  // cli_actuator.cc: actuator
 void RegisterTokenCommands(CLI::App& app,
                            Globals& g);  // cli_token.cc: token, audit
-void RegisterPaper000Commands(
+void RegisterModelQueryCommands(
     CLI::App& app,
-    Globals& g);  // cli_paper000.cc: target-force, sliding-speed, ...
+    Globals& g);  // cli_model_queries.cc: target-force, sliding-speed, ...
 
 }  // namespace frictiond::cli

@@ -30,7 +30,7 @@ int main(int argc, char** argv) {
   frictiond::cli::RegisterLuGreCommands(app, g);
   frictiond::cli::RegisterExportCommands(app, g);
   frictiond::cli::RegisterJointCommands(app, g);
-  frictiond::cli::RegisterPaper000Commands(app, g);
+  frictiond::cli::RegisterModelQueryCommands(app, g);
   frictiond::cli::RegisterTokenCommands(app, g);
   frictiond::cli::RegisterActuatorCommands(app, g);
   try {

@@ -156,6 +156,15 @@ std::string Key(const std::string& material, const std::string& fingertip) {
   return material + '\n' + fingertip;
 }
 
+// A bundled manifest entry's name, description and tags.
+MaterialUpdate BundledMaterial(const json& entry, const std::string& id) {
+  MaterialUpdate m;
+  m.name = entry.value("name", id);
+  m.description = entry.value("description", "");
+  m.tags = entry.value("tags", std::vector<std::string>{});
+  return m;
+}
+
 }  // namespace
 
 FrictionLibrary::FrictionLibrary(std::unique_ptr<Store> store,
@@ -231,73 +240,74 @@ Material FrictionLibrary::GetMaterial(const std::string& id) {
 }
 
 bool FrictionLibrary::PutMaterial(const std::string& id,
-                                  const std::string& json_body) {
+                                  const MaterialUpdate& update) {
   CheckId(id, "id");
-  json body = json::object();
-  if (!json_body.empty()) {
-    try {
-      body = json::parse(json_body);
-    } catch (const json::exception& e) {
+  constexpr std::size_t kMaxName = 200, kMaxDescription = 4000;
+  constexpr std::size_t kMaxTags = 64, kMaxTag = 64;
+  auto too_long =
+      [](const std::string& field, std::size_t size, std::size_t max) {
+        return RequestError(StatusCode::kInvalidArgument,
+                            field,
+                            field + ": " + std::to_string(size) +
+                                " characters (at most " + std::to_string(max) +
+                                ")");
+      };
+  if (update.name) {
+    if (update.name->size() > kMaxName)
+      throw too_long("name", update.name->size(), kMaxName);
+    CheckText(*update.name, "name", kMaxName);
+  }
+  if (update.description) {
+    if (update.description->size() > kMaxDescription)
+      throw too_long(
+          "description", update.description->size(), kMaxDescription);
+    // Free text: line breaks allowed, but valid UTF-8.
+    if (!IsValidUtf8(*update.description))
       throw RequestError(StatusCode::kInvalidArgument,
-                         "body",
-                         std::string("body: invalid JSON: ") + e.what());
+                         "description",
+                         "description: not valid UTF-8");
+  }
+  if (update.tags) {
+    if (update.tags->size() > kMaxTags)
+      throw RequestError(StatusCode::kInvalidArgument,
+                         "tags",
+                         "tags: " + std::to_string(update.tags->size()) +
+                             " tags (at most 64)");
+    for (const std::string& t : *update.tags) {
+      if (t.size() > kMaxTag)
+        throw RequestError(StatusCode::kInvalidArgument,
+                           "tags",
+                           "tags: a tag longer than 64 characters");
+      CheckText(t, "tags", kMaxTag);
     }
   }
-  if (!body.is_object())
-    throw RequestError(
-        StatusCode::kInvalidArgument,
-        "body",
-        "body: expected a JSON object {name, description, tags}");
   Material m;
   m.id = id;
   if (auto old = store_->GetMaterial(id)) m = *old;
-  for (auto it = body.begin(); it != body.end(); ++it) {
-    const std::string& k = it.key();
-    if (k == "name" || k == "description") {
-      if (!it->is_string())
-        throw RequestError(
-            StatusCode::kInvalidArgument, k, k + ": expected a string");
-      const std::string s = it->get<std::string>();
-      if (s.size() > (k == "name" ? 200u : 4000u)) {
-        throw RequestError(StatusCode::kInvalidArgument,
-                           k,
-                           k + ": " + std::to_string(s.size()) +
-                               " characters (at most " +
-                               (k == "name" ? "200" : "4000") + ")");
-      }
-      (k == "name" ? m.name : m.description) = s;
-    } else if (k == "tags") {
-      if (!it->is_array())
-        throw RequestError(StatusCode::kInvalidArgument,
-                           k,
-                           "tags: expected an array of strings");
-      if (it->size() > 64)
-        throw RequestError(
-            StatusCode::kInvalidArgument,
-            k,
-            "tags: " + std::to_string(it->size()) + " tags (at most 64)");
-      std::vector<std::string> tags;
-      for (const auto& t : *it) {
-        if (!t.is_string())
-          throw RequestError(StatusCode::kInvalidArgument,
-                             k,
-                             "tags: expected an array of strings");
-        if (t.get<std::string>().size() > 64)
-          throw RequestError(StatusCode::kInvalidArgument,
-                             k,
-                             "tags: a tag longer than 64 characters");
-        tags.push_back(t.get<std::string>());
-      }
-      m.tags = tags;
-    } else {
-      throw RequestError(StatusCode::kInvalidArgument,
-                         k,
-                         "body: unknown field '" + k.substr(0, 64) +
-                             "' (allowed: name, description, tags)");
-    }
-  }
+  if (update.name) m.name = *update.name;
+  if (update.description) m.description = *update.description;
+  if (update.tags) m.tags = *update.tags;
   if (m.name.empty()) m.name = id;
   return store_->PutMaterial(m);
+}
+
+bool FrictionLibrary::PutFingertip(const Fingertip& fingertip) {
+  CheckId(fingertip.id, "id");
+  for (const auto& [field, text] :
+       {std::pair<const char*, const std::string*>{"name", &fingertip.name},
+        {"description", &fingertip.description}}) {
+    if (text->size() > 4000)
+      throw RequestError(StatusCode::kInvalidArgument,
+                         field,
+                         std::string(field) + ": " +
+                             std::to_string(text->size()) +
+                             " bytes (at most 4000)");
+    if (!IsValidUtf8(*text))
+      throw RequestError(StatusCode::kInvalidArgument,
+                         field,
+                         std::string(field) + ": not valid UTF-8");
+  }
+  return store_->PutFingertip(fingertip);
 }
 
 bool FrictionLibrary::DeleteMaterial(const std::string& id) {
@@ -778,10 +788,7 @@ int FrictionLibrary::LoadBundledData(const std::string& dir) {
     } catch (const RequestError& e) {
       throw std::runtime_error(csv_path.string() + ": " + e.what());
     }
-    json body = {{"name", d.value("name", id)},
-                 {"description", d.value("description", "")},
-                 {"tags", d.value("tags", std::vector<std::string>{})}};
-    PutMaterial(id, body.dump());
+    PutMaterial(id, BundledMaterial(d, id));
     ++loaded;
   }
   // Actuator log sets (issue 20, docs/actuator.md): the bundled identified
@@ -826,10 +833,7 @@ int FrictionLibrary::LoadBundledData(const std::string& dir) {
       family["logs"] = logs;
       family["source"] = d.value("name", robot);
       AddFamilyVersion(robot, joint, "actuator", family, "bundled");
-      json body = {{"name", d.value("name", robot)},
-                   {"description", d.value("description", "")},
-                   {"tags", d.value("tags", std::vector<std::string>{})}};
-      PutMaterial(robot, body.dump());
+      PutMaterial(robot, BundledMaterial(d, robot));
       ++loaded;
     }
   }

@@ -17,6 +17,43 @@ json MaterialToJson(const Material& m) {
               {"updated_at", m.updated_at}};
 }
 
+namespace {
+
+// The body of a PUT: empty (= {}) or a JSON object.
+json JsonObjectBody(const std::string& body, const std::string& shape) {
+  json j = json::object();
+  if (!body.empty()) {
+    try {
+      j = json::parse(body);
+    } catch (const json::exception& e) {
+      throw RequestError(StatusCode::kInvalidArgument,
+                         "body",
+                         std::string("body: invalid JSON: ") + e.what());
+    }
+  }
+  if (!j.is_object())
+    throw RequestError(StatusCode::kInvalidArgument,
+                       "body",
+                       "body: expected a JSON object " + shape);
+  return j;
+}
+
+std::string StringField(const json& value, const std::string& field) {
+  if (!value.is_string())
+    throw RequestError(
+        StatusCode::kInvalidArgument, field, field + ": expected a string");
+  return value.get<std::string>();
+}
+
+RequestError UnknownField(const std::string& key, const std::string& allowed) {
+  return RequestError(StatusCode::kInvalidArgument,
+                      key,
+                      "body: unknown field '" + ShownText(key, 64) +
+                          "' (allowed: " + allowed + ")");
+}
+
+}  // namespace
+
 std::string FingertipParam(const HttpRequest& req) {
   const std::string f = req.QueryOr("fingertip", "default");
   CheckId(f, "fingertip");
@@ -125,7 +162,33 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
   });
   http.Route("PUT", "/v1/materials/{id}", [&lib](const HttpRequest& req) {
     const std::string& id = req.params[0];
-    const bool created = lib.PutMaterial(id, req.body);
+    MaterialUpdate update;
+    const json body = JsonObjectBody(req.body, "{name, description, tags}");
+    for (auto it = body.begin(); it != body.end(); ++it) {
+      const std::string& k = it.key();
+      if (k == "name") {
+        update.name = StringField(*it, k);
+      } else if (k == "description") {
+        update.description = StringField(*it, k);
+      } else if (k == "tags") {
+        if (!it->is_array())
+          throw RequestError(StatusCode::kInvalidArgument,
+                             k,
+                             "tags: expected an array of strings");
+        std::vector<std::string> tags;
+        for (const json& t : *it) {
+          if (!t.is_string())
+            throw RequestError(StatusCode::kInvalidArgument,
+                               k,
+                               "tags: expected an array of strings");
+          tags.push_back(t.get<std::string>());
+        }
+        update.tags = std::move(tags);
+      } else {
+        throw UnknownField(k, "name, description, tags");
+      }
+    }
+    const bool created = lib.PutMaterial(id, update);
     return HttpResponse::Json(created ? 201 : 200,
                               MaterialToJson(lib.GetMaterial(id)));
   });
@@ -151,41 +214,19 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
   });
   http.Route("PUT", "/v1/fingertips/{id}", [&lib](const HttpRequest& req) {
     const std::string& id = req.params[0];
-    CheckId(id, "id");
-    json body = json::object();
-    if (!req.body.empty()) {
-      try {
-        body = json::parse(req.body);
-      } catch (const json::exception& e) {
-        throw RequestError(StatusCode::kInvalidArgument,
-                           "body",
-                           std::string("body: invalid JSON: ") + e.what());
-      }
-    }
-    if (!body.is_object())
-      throw RequestError(StatusCode::kInvalidArgument,
-                         "body",
-                         "body: expected a JSON object {name, description}");
+    // A PUT replaces the fingertip: fields not given are reset (the name
+    // to the id).
     Fingertip f{id, id, "", ""};
+    const json body = JsonObjectBody(req.body, "{name, description}");
     for (auto it = body.begin(); it != body.end(); ++it) {
-      if (it.key() != "name" && it.key() != "description")
-        throw RequestError(StatusCode::kInvalidArgument,
-                           it.key(),
-                           "body: unknown field '" + it.key().substr(0, 64) +
-                               "' (allowed: name, description)");
-      if (!it->is_string())
-        throw RequestError(StatusCode::kInvalidArgument,
-                           it.key(),
-                           it.key() + ": expected a string");
-      const std::string text = it->get<std::string>();
-      if (text.size() > 4000)  // a JSON string is valid UTF-8 already
-        throw RequestError(StatusCode::kInvalidArgument,
-                           it.key(),
-                           it.key() + ": " + std::to_string(text.size()) +
-                               " bytes (at most 4000)");
-      (it.key() == "name" ? f.name : f.description) = text;
+      if (it.key() == "name")
+        f.name = StringField(*it, "name");
+      else if (it.key() == "description")
+        f.description = StringField(*it, "description");
+      else
+        throw UnknownField(it.key(), "name, description");
     }
-    const bool created = lib.store().PutFingertip(f);
+    const bool created = lib.PutFingertip(f);
     return HttpResponse::Json(
         created ? 201 : 200,
         {{"id", f.id}, {"name", f.name}, {"description", f.description}});

@@ -131,6 +131,46 @@ TEST_F(LibraryTest, FamilyFittersAndListenersRun) {
   EXPECT_NE(r.fit_note.find("demo: saw"), std::string::npos) << r.fit_note;
 }
 
+TEST_F(LibraryTest, PutMaterialTakesTypedFieldsAndKeepsUnsetOnes) {
+  MaterialUpdate u;
+  u.name = "Felt pad";
+  u.tags = std::vector<std::string>{"soft", "textile"};
+  EXPECT_TRUE(lib_.PutMaterial("felt", u));
+  MaterialUpdate d;
+  d.description = "grey\nwool";  // free text may break lines
+  EXPECT_FALSE(lib_.PutMaterial("felt", d));
+  const Material m = lib_.GetMaterial("felt");
+  EXPECT_EQ(m.name, "Felt pad");
+  EXPECT_EQ(m.description, "grey\nwool");
+  EXPECT_EQ(m.tags, (std::vector<std::string>{"soft", "textile"}));
+  // Refused values name the field and store nothing.
+  auto refused = [&](const MaterialUpdate& bad, const std::string& field) {
+    try {
+      lib_.PutMaterial("rubber", bad);
+      ADD_FAILURE() << field << " accepted";
+    } catch (const RequestError& e) {
+      EXPECT_EQ(e.code(), StatusCode::kInvalidArgument);
+      EXPECT_EQ(e.field(), field);
+    }
+    EXPECT_THROW(lib_.GetMaterial("rubber"), RequestError);
+  };
+  MaterialUpdate bad;
+  bad.name = std::string("a\x01b");
+  refused(bad, "name");
+  bad = {};
+  bad.name = std::string(201, 'n');
+  refused(bad, "name");
+  bad = {};
+  bad.description = std::string("\xC3");
+  refused(bad, "description");
+  bad = {};
+  bad.tags = std::vector<std::string>(65, "t");
+  refused(bad, "tags");
+  bad = {};
+  bad.tags = std::vector<std::string>{std::string(65, 't')};
+  refused(bad, "tags");
+}
+
 TEST_F(LibraryTest, QueryValidationNamesTheParameter) {
   lib_.IngestStrokes("felt", SimulatedCsv(8), {});
   auto detail = [&](std::multimap<std::string, std::string> q,

@@ -58,6 +58,16 @@ struct CachedModel {
   std::string json_text;  ///< serialised ModelSetToJson(set)
 };
 
+/// What a PUT of a material sets; a field left unset keeps its stored value
+/// (the name defaults to the id). The HTTP route reads it from the JSON
+/// body {"name","description","tags"} (routes_core.cc); the library checks
+/// the values.
+struct MaterialUpdate {
+  std::optional<std::string> name;               ///< text, <= 200 bytes
+  std::optional<std::string> description;        ///< UTF-8, <= 4000 bytes
+  std::optional<std::vector<std::string>> tags;  ///< <= 64 of <= 64 bytes
+};
+
 /// Result of IngestStrokes.
 struct IngestResult {
   std::int64_t stroke_id = 0;
@@ -110,13 +120,19 @@ class FrictionLibrary {
   /// @throws RequestError(StatusCode::kNotFound) when unknown (no
   /// identification is requested).
   Material GetMaterial(const std::string& id);
-  /// Creates or updates from the contract's JSON body
-  /// {"name","description","tags"}.
+  /// Creates or updates a material.
   /// @return true when created. @throws
-  /// RequestError(StatusCode::kInvalidArgument) naming the field.
-  bool PutMaterial(const std::string& id, const std::string& json_body);
+  /// RequestError(StatusCode::kInvalidArgument) naming the field (too long,
+  /// invalid text, too many tags); nothing is stored then.
+  bool PutMaterial(const std::string& id, const MaterialUpdate& update);
   /// @return false when it did not exist.
   bool DeleteMaterial(const std::string& id);
+
+  // --- fingertips -----------------------------------------------------------
+  /// Creates or replaces a fingertip (id, name, description; each text of
+  /// at most 4000 bytes, valid UTF-8). @return true when created.
+  /// @throws RequestError(StatusCode::kInvalidArgument) naming the field.
+  bool PutFingertip(const Fingertip& fingertip);
 
   // --- models ---------------------------------------------------------------
   /// Newest model of the pair, or nullptr when there is none.

@@ -1,4 +1,4 @@
-// Paper 000 routes end to end (docs/paper000.md): the real `frictiond`
+// Model-query routes (paper 000) end to end (docs/paper000.md): the real `frictiond`
 // over loopback HTTP, the client library calls and the `friction` CLI.
 #include <cmath>
 #include <cstdlib>
@@ -36,10 +36,10 @@ std::string ReadText(const std::string& path) {
   return s.str();
 }
 
-class Paper000HttpTest : public ::testing::Test {
+class ModelQueriesHttpTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = new TempDir("paper000_http_test");
+    dir_ = new TempDir("model_queries_http_test");
     DaemonOptions options;
     options.db = dir_->path() + "/library.db";
     options.data = "none";
@@ -85,10 +85,10 @@ class Paper000HttpTest : public ::testing::Test {
   static DaemonProcess* daemon_;
 };
 
-TempDir* Paper000HttpTest::dir_ = nullptr;
-DaemonProcess* Paper000HttpTest::daemon_ = nullptr;
+TempDir* ModelQueriesHttpTest::dir_ = nullptr;
+DaemonProcess* ModelQueriesHttpTest::daemon_ = nullptr;
 
-TEST_F(Paper000HttpTest, ClientTargetForceAndSlidingSpeedRoundTrip) {
+TEST_F(ModelQueriesHttpTest, ClientTargetForceAndSlidingSpeedRoundTrip) {
   FrictionClient c = Client();
   const testing::SimulationSpec truth;
   const json f = c.FetchTargetForce("pad", 3.0, 50.0);
@@ -108,7 +108,7 @@ TEST_F(Paper000HttpTest, ClientTargetForceAndSlidingSpeedRoundTrip) {
   }
 }
 
-TEST_F(Paper000HttpTest, CliTargetForceAndSlidingSpeed) {
+TEST_F(ModelQueriesHttpTest, CliTargetForceAndSlidingSpeed) {
   std::string out, err;
   ASSERT_EQ(Cli("target-force pad --fn-n 2 --v-mm-s 30", &out, &err), 0) << err;
   const double ft = json::parse(out).at("ft_n").get<double>();
@@ -123,7 +123,7 @@ TEST_F(Paper000HttpTest, CliTargetForceAndSlidingSpeed) {
   EXPECT_EQ(Cli("target-force nothing --fn-n 1 --v-mm-s 3", &out, &err), 1);
 }
 
-TEST_F(Paper000HttpTest, ClientAndCliConditionalSlipAndForms) {
+TEST_F(ModelQueriesHttpTest, ClientAndCliConditionalSlipAndForms) {
   FrictionClient c = Client();
   const json in = c.FetchConditionalSlipLikelihood("pad", 2.5, 0.9);
   EXPECT_FALSE(in.at("extrapolated").get<bool>()) << in.dump();
@@ -142,7 +142,7 @@ TEST_F(Paper000HttpTest, ClientAndCliConditionalSlipAndForms) {
   EXPECT_NE(err.find("folds"), std::string::npos) << err;
 }
 
-TEST_F(Paper000HttpTest, ClientAndCliMuSpreadAndSpanVariability) {
+TEST_F(ModelQueriesHttpTest, ClientAndCliMuSpreadAndSpanVariability) {
   FrictionClient c = Client();
   const json m =
       c.FetchMuSpread("pad",

@@ -1,4 +1,4 @@
-// Paper 000 subcommands of `friction` that ask the daemon: controlled
+// Model-query subcommands of `friction` (paper 000) that ask the daemon: controlled
 // sliding (eq. 3) and velocity prediction (eq. 4).
 #include <iostream>
 #include <string>
@@ -13,7 +13,7 @@ namespace frictiond::cli {
 
 namespace {}  // namespace
 
-void RegisterPaper000Commands(CLI::App& app, Globals& g) {
+void RegisterModelQueryCommands(CLI::App& app, Globals& g) {
   // target-force (eq. 3)
   {
     auto* cmd = app.add_subcommand(
