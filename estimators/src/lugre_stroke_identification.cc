@@ -109,6 +109,8 @@ void SignRun(const StrokeData& d,
     return;
   }
   // Motion direction changes -> force flips at the |mu| minimum nearby.
+  std::vector<double> mu_run(n);  // each sample's Ft/Fn, divided once
+  for (std::size_t i = 0; i < n; ++i) mu_run[i] = d.mu(b + i);
   std::vector<std::pair<std::size_t, double>> flips;  // (index, new sign)
   double motion = 0;
   for (std::size_t i = 0; i < n; ++i) {
@@ -127,7 +129,7 @@ void SignRun(const StrokeData& d,
       while (hi + 1 < n && d.t_s[b + hi + 1] - d.t_s[b + i] <= kFlipAfterS)
         ++hi;
       for (std::size_t j = lo; j <= hi; ++j)
-        if (d.mu(b + j) < d.mu(b + best)) best = j;
+        if (mu_run[j] < mu_run[best]) best = j;
       flips.emplace_back(best, s);
     }
     motion = s;
@@ -136,7 +138,7 @@ void SignRun(const StrokeData& d,
   double force = flips.empty() ? 1.0 : flips[0].second;
   for (std::size_t i = 0; i < n; ++i) {
     while (f < flips.size() && flips[f].first <= i) force = flips[f++].second;
-    (*mu)[i] = force * d.mu(b + i);
+    (*mu)[i] = force * mu_run[i];
   }
 }
 

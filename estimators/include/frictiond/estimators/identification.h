@@ -36,9 +36,9 @@ struct MaterialIdentificationOptions {
   /// false: `lugre` stays unidentified with why = "not requested".
   bool lugre = true;
   /// 1: every step on the calling thread. 2: the conditional likelihood,
-  /// the coverage and the LuGre identification run on a second thread while
-  /// the regressions run (the results are the same; only the wall time
-  /// differs).
+  /// the span coverage and the LuGre identification run on a second thread
+  /// while the regressions and the hull run (the results are the same;
+  /// only the wall time differs).
   int threads = 2;
 };
 
