@@ -31,7 +31,7 @@ def main(src, dst):
     risk = [float(r["risk"]) for r in rows]
     series = [
         ("truth's model (its own grip force)", "#1f77b4", "circle",
-         [int(r["drops_truth"]) / int(r["episodes"]) for r in rows]),
+         [int(r["drops_truth"]) / int(r["episodes_truth"]) for r in rows]),
         ("identified by the daemon (end to end)", "#d62728", "square",
          [int(r["drops_served"]) / int(r["episodes"]) for r in rows]),
         ("Coulomb, served mean mu", "#2ca02c", "triangle",
