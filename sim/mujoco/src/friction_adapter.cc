@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include "frictiond/estimators/grip_force.h"
+#include "frictiond/proto/lugre_json.h"
 
 namespace frictiond::mujoco {
 namespace {
@@ -103,11 +104,57 @@ void FrictionAdapter::TagGeom(const mjModel* m,
   TagGeom(m, name, *set.stochastic);
 }
 
+void FrictionAdapter::TagGeomLuGre(int geom, const LuGreTheta& theta) {
+  if (geom < 0) throw std::invalid_argument("geom: negative id");
+  ValidateLuGreTheta(theta);
+  lugre_[geom] = theta;
+}
+
+void FrictionAdapter::TagGeomLuGre(const mjModel* m,
+                                   const std::string& name,
+                                   const LuGreTheta& theta) {
+  if (!m) throw std::invalid_argument("m: no MuJoCo model");
+  const int id = mj_name2id(m, mjOBJ_GEOM, name.c_str());
+  if (id < 0) throw std::invalid_argument("geom: no geom named '" + name + "'");
+  TagGeomLuGre(id, theta);
+}
+
+void FrictionAdapter::TagGeomLuGre(const mjModel* m,
+                                   const std::string& name,
+                                   const ModelSet& set) {
+  const auto it = set.other.find(kLuGreFamilyKey);
+  if (it == set.other.end())
+    throw std::invalid_argument("lugre: model set of '" + set.material +
+                                "' has no LuGre family");
+  TagGeomLuGre(m, name, LuGreFromJson(*it).theta);
+}
+
 void FrictionAdapter::Reset(std::uint64_t seed) {
   rng_.seed(seed);
   normal_.reset();
   episodes_.clear();
   if (joint_friction_) joint_friction_->Reset();
+}
+
+double FrictionAdapter::AdvanceLuGre(const LuGreTheta& theta,
+                                     double h_s,
+                                     ContactEpisode* ep) const {
+  // Paper 001 eqs. (1)-(3) in friction-ratio form (lugre.h), v >= 0 the
+  // slip speed of the previous step [mm/s], z [mm].
+  const double v = std::max(ep->v_mm_s, 0.0);
+  const double sigma0 = theta(LuGreIndex::kStiffness);
+  const double g = CalcStribeckRatio(theta, v);  // > 0 for a valid theta
+  double z_dot = 0.0;
+  if (v > 0) {
+    // Exact for constant v: dz/dt = v - sigma0 v z / g relaxes z to g/sigma0.
+    const double z_ss = g / sigma0;
+    ep->lugre_z = z_ss + (ep->lugre_z - z_ss) * std::exp(-sigma0 * v * h_s / g);
+    z_dot = v - sigma0 * v * ep->lugre_z / g;
+  }
+  const double mu = sigma0 * ep->lugre_z + theta(LuGreIndex::kDamping) * z_dot +
+                    theta(LuGreIndex::kViscous) * v;
+  if (!std::isfinite(mu)) return options_.mu_min;
+  return std::clamp(mu, options_.mu_min, options_.mu_max);
 }
 
 double FrictionAdapter::CalcMu(const StochasticFrictionModel& model,
@@ -168,10 +215,29 @@ void FrictionAdapter::MeasurePairs(const mjModel* m, const mjData* d) {
   }
 }
 
-void FrictionAdapter::SetContactFriction(const mjModel* /*m*/, mjData* d) {
+void FrictionAdapter::SetContactFriction(const mjModel* m, mjData* d) {
   std::map<std::pair<int, int>, ContactEpisode> next;
   for (int i = 0; i < d->ncon; ++i) {
     mjContact& c = d->contact[i];
+    auto l = lugre_.find(c.geom1);
+    if (l == lugre_.end()) l = lugre_.find(c.geom2);
+    if (l != lugre_.end()) {
+      const auto key = PairKey(c.geom1, c.geom2);
+      auto n = next.find(key);
+      if (n == next.end()) {
+        auto old = episodes_.find(key);
+        ContactEpisode ep;  // a new episode: z = 0
+        if (old != episodes_.end() &&
+            d->time - old->second.last_s <= options_.episode_gap_s)
+          ep = old->second;
+        ep.last_s = d->time;
+        ep.mu = AdvanceLuGre(l->second, m->opt.timestep, &ep);
+        n = next.emplace(key, ep).first;
+      }
+      c.friction[0] = n->second.mu;
+      c.friction[1] = n->second.mu;
+      continue;
+    }
     auto t = tagged_.find(c.geom1);
     if (t == tagged_.end()) t = tagged_.find(c.geom2);
     if (t == tagged_.end()) continue;

@@ -34,7 +34,9 @@
 ///  - Fn and v_slip lag one step (they come from the previous step);
 ///  - only the Euler integrator (RK4 would call mj_forward internally and
 ///    reset friction); Step() throws otherwise;
-///  - no LuGre state per contact (not implemented);
+///  - LuGre state per contact (TagGeomLuGre): one scalar bristle state
+///    along the contact's slip speed, advanced with the previous step's
+///    slip speed; slip direction reversals are not seen;
 ///  - MuJoCo 2.2.2's elliptic noslip lets a contact creep when one of its
 ///    friction directions has an empty Jacobian: give contacting bodies
 ///    freedom in both tangential directions.
@@ -59,6 +61,7 @@
 
 #include <mujoco/mujoco.h>
 
+#include "frictiond/estimators/lugre.h"
 #include "frictiond/estimators/stochastic_model.h"
 #include "frictiond/mujoco/joint_friction.h"
 #include "frictiond/proto/model_json.h"
@@ -105,6 +108,7 @@ struct ContactEpisode {
   double fn_n = 0.0;       ///< normal force of the pair at the last step [N]
   double v_mm_s = 0.0;     ///< slip speed of the pair at the last step [mm/s]
   double mu = 0.0;         ///< mu given at the last step
+  double lugre_z = 0.0;    ///< LuGre bristle state z [mm] (TagGeomLuGre)
   bool seen = false;       ///< in contact at the last step
   double last_s = 0.0;     ///< simulation time of the last step in contact
 };
@@ -127,6 +131,34 @@ class FrictionAdapter {
   /// with ModelSetFromJson). @throws std::invalid_argument without a
   /// stochastic model.
   void TagGeom(const mjModel* m, const std::string& name, const ModelSet& set);
+
+  /// LuGre state per contact (paper 001 eqs. 1-3, lugre.h, friction-ratio
+  /// form): every contact of geom `geom` carries a bristle state z, zero
+  /// when the contact episode starts, advanced every step over the time
+  /// step h with the pair's slip speed v of the previous step (>= 0, the
+  /// tangential speed) by the exact solution for constant v,
+  ///   z <- z_ss + (z - z_ss) exp(-sigma0 v h / g(v)),  z_ss = g(v) / sigma0,
+  /// and the contact's friction coefficient (the cone MuJoCo enforces) is
+  ///   mu = sigma0 z + sigma1 dz/dt + sigma2 v,  dz/dt = v - sigma0 v z / g(v)
+  /// clamped to [mu_min, mu_max]. A sticking contact keeps its z (and mu);
+  /// a load above it makes the contact preslide until z has grown to hold
+  /// it, up to g(0) = mu_s (static friction); a sliding contact relaxes to
+  /// g(v) -> mu_c (Stribeck). Departures: z is a scalar along the current
+  /// slip (a reversal of the slip direction does not unload it), and v
+  /// lags one step. LuGre-tagged geoms ignore AdapterOptions::mode and take
+  /// precedence over TagGeom on the same geom.
+  /// @throws std::invalid_argument for a negative geom id or an invalid
+  /// theta (IsValidLuGreTheta).
+  void TagGeomLuGre(int geom, const LuGreTheta& theta);
+  /// The same by geom name. @throws std::invalid_argument for an unknown name.
+  void TagGeomLuGre(const mjModel* m,
+                    const std::string& name,
+                    const LuGreTheta& theta);
+  /// By a model set's LuGre family (GET /v1/materials/{id}/model, field
+  /// "lugre"). @throws std::invalid_argument without a LuGre family.
+  void TagGeomLuGre(const mjModel* m,
+                    const std::string& name,
+                    const ModelSet& set);
 
   /// One simulation step with live friction (replaces mj_step).
   /// @throws std::invalid_argument when m->opt.integrator is not Euler.
@@ -156,12 +188,17 @@ class FrictionAdapter {
 
  private:
   void MeasurePairs(const mjModel* m, const mjData* d);
+  /// Advances a LuGre contact's z by one step; returns its mu.
+  double AdvanceLuGre(const LuGreTheta& theta,
+                      double h_s,
+                      ContactEpisode* ep) const;
   void SetContactFriction(const mjModel* m, mjData* d);
 
   AdapterOptions options_;
   std::mt19937_64 rng_;
   std::normal_distribution<double> normal_{0.0, 1.0};
   std::map<int, StochasticFrictionModel> tagged_;
+  std::map<int, LuGreTheta> lugre_;
   /// Per tagged geom: eps = F^-1(Phi(z)) on a z grid (eps_time models).
   std::map<int, std::vector<double>> latent_table_;
   std::map<std::pair<int, int>, ContactEpisode> episodes_;
