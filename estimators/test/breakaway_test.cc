@@ -43,12 +43,15 @@ LuGreStroke SimulateStroke(const std::function<double(double)>& v_of_t,
   return s;
 }
 
-// Two-stroke identification (paper Steps 1-2) from far starts, seed 7.
-LuGreTheta Identify(DynamicFitVariant variant, bool ekf) {
+// Two-stroke identification (paper Steps 1-2) from far starts; the slow
+// stroke's noise from `seed`, the fast one's from seed + 100.
+LuGreTheta Identify(DynamicFitVariant variant, bool ekf, unsigned seed = 7) {
   const LuGreStroke slow = SimulateStroke(
-      [](double t) { return t < 10 ? 2.0 * t : 40.0 - 2.0 * t; }, 20.0, 7);
+      [](double t) { return t < 10 ? 2.0 * t : 40.0 - 2.0 * t; }, 20.0, seed);
   const LuGreStroke fast = SimulateStroke(
-      [](double t) { return t < 0.5 ? 20.0 * t : 20.0 - 20.0 * t; }, 1.0, 107);
+      [](double t) { return t < 0.5 ? 20.0 * t : 20.0 - 20.0 * t; },
+      1.0,
+      seed + 100);
   const LuGreFitResult qs =
       FitLuGreQuasiStatic(slow, Eigen::Vector4d(0.3, 0.2, 1.0, 0.0));
   EXPECT_EQ(qs.status, LuGreFitStatus::kConverged) << qs.why;
@@ -71,30 +74,57 @@ LuGreTheta Identify(DynamicFitVariant variant, bool ekf) {
   return r.theta;
 }
 
-TEST(BreakawayPredictionTest,
-     IdentifiedModelPredictsTruthBfRatioWithin3Percent) {
-  struct Case {
+// Every variant's BF-ratio against the truth's over 10 seeds. The
+// prediction runs at Table II's rel_tol 1e-3, so two predictions of one
+// model differ by up to ~1e-3; the identification adds its own error.
+// Measured worst / mean relative error over 10 seeds x 3 rates: GN+LM-1
+// 7.4e-4 / 3.4e-4, GN+LM-2 2.1e-3 / 5.2e-4, LM-6 3.2e-3 / 9.4e-4, GN+EKF
+// 7.5e-4 / 3.6e-4 (was one seed against a 3 % limit).
+TEST(BreakawayPredictionTest, IdentifiedModelPredictsTruthBfRatioOverSeeds) {
+  struct Variant {
     const char* name;
-    LuGreTheta theta;
+    DynamicFitVariant variant;
+    bool ekf;
   };
-  const Case cases[] = {
-      {"GN+LM-1", Identify(DynamicFitVariant::kLm1, false)},
-      {"GN+LM-2", Identify(DynamicFitVariant::kLm2, false)},
-      {"LM-6 (two strokes)", Identify(DynamicFitVariant::kLm6, false)},
-      {"GN+EKF", Identify(DynamicFitVariant::kLm1, true)}};
-  for (double rho : {0.05, 0.5, 5.0}) {
-    const ForceDrivenResult truth = PredictBreakawayRatio(Truth(), rho, kFn);
+  const Variant variants[] = {
+      {"GN+LM-1", DynamicFitVariant::kLm1, false},
+      {"GN+LM-2", DynamicFitVariant::kLm2, false},
+      {"LM-6 (two strokes)", DynamicFitVariant::kLm6, false},
+      {"GN+EKF", DynamicFitVariant::kLm1, true}};
+  const double rhos[] = {0.05, 0.5, 5.0};
+  double truth_bf[3];
+  for (int i = 0; i < 3; ++i) {
+    const ForceDrivenResult truth =
+        PredictBreakawayRatio(Truth(), rhos[i], kFn);
     ASSERT_EQ(truth.status, SimulationStatus::kOk) << truth.why;
-    for (const Case& c : cases) {
-      const ForceDrivenResult p = PredictBreakawayRatio(c.theta, rho, kFn);
-      ASSERT_EQ(p.status, SimulationStatus::kOk) << c.name << ": " << p.why;
-      const double err = std::abs(p.bf_ratio - truth.bf_ratio) / truth.bf_ratio;
-      std::cout << "rho " << rho << " " << c.name << ": BF " << p.bf_ratio
-                << " vs truth " << truth.bf_ratio << " (" << 100 * err
-                << " %)\n";
-      EXPECT_LT(err, 0.03) << c.name << " rho " << rho << ": expected "
-                           << truth.bf_ratio << ", got " << p.bf_ratio;
+    truth_bf[i] = truth.bf_ratio;
+  }
+  constexpr int kSeeds = 10;
+  for (const Variant& c : variants) {
+    double worst = 0, sum = 0;
+    int n = 0;
+    for (unsigned seed = 1; seed <= kSeeds; ++seed) {
+      const LuGreTheta theta = Identify(c.variant, c.ekf, seed);
+      for (int i = 0; i < 3; ++i) {
+        const ForceDrivenResult p = PredictBreakawayRatio(theta, rhos[i], kFn);
+        ASSERT_EQ(p.status, SimulationStatus::kOk) << c.name << ": " << p.why;
+        const double err = std::abs(p.bf_ratio / truth_bf[i] - 1);
+        worst = std::max(worst, err);
+        sum += err;
+        ++n;
+        EXPECT_LT(err, 3e-3)
+            << c.name << " seed " << seed << " rho " << rhos[i] << ": expected "
+            << truth_bf[i] << ", got " << p.bf_ratio;
+      }
     }
+    std::printf(
+        "%s: BF-ratio error over %d seeds x 3 rates: worst %.2e, "
+        "mean %.2e\n",
+        c.name,
+        kSeeds,
+        worst,
+        sum / n);
+    EXPECT_LT(sum / n, 1.5e-3) << c.name;
   }
 }
 
