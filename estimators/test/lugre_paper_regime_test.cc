@@ -7,6 +7,7 @@
 // truth of Table V, whose sigma1 is 32x the tie sigma1 = 0.0316 sqrt(sigma0)
 // that LM-1 and the EKF assume (Section III after eq. 10; Section V.B.2).
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <functional>
 #include <iostream>
@@ -19,6 +20,7 @@
 
 #include "frictiond/estimators/breakaway.h"
 #include "frictiond/estimators/lugre_identification.h"
+#include "frictiond/testing/lugre_strokes.h"
 
 namespace frictiond {
 namespace {
@@ -229,6 +231,33 @@ void Print(const PaperTruth& truth, const std::vector<SeedRun>& runs) {
           o.bf_err);
     }
   }
+  // Summary row per estimator (docs/lugre.md "Paper regime" table).
+  auto row = [&](const char* name, auto get) {
+    int conv = 0, s0 = 0, s1 = 0, bf = 0;
+    for (const SeedRun& r : runs) {
+      const Outcome o = get(r);
+      conv += o.status == LuGreFitStatus::kConverged;
+      s0 += std::abs(o.sigma0_err) <= 0.1;
+      s1 += std::abs(o.sigma1_err) <= 0.3;
+      bf += o.bf_err <= 0.1;
+    }
+    std::printf("  | %s | %s | %d | %d | %d | %d |\n",
+                truth.name,
+                name,
+                conv,
+                s0,
+                s1,
+                bf);
+  };
+  for (int e = 0; e < kNumEstimators; ++e)
+    row(kEstimatorNames[e], [e](const SeedRun& r) { return r.out[e]; });
+  int gnr = 0;
+  for (const SeedRun& r : runs)
+    gnr += std::abs(r.step1.theta[0] / truth.theta[0] - 1) <= 0.1 &&
+           std::abs(r.step1.theta[1] / truth.theta[1] - 1) <= 0.1;
+  std::printf("  | %s | GNR (Step 1): mu_s, mu_c within 10 %% | %d |\n",
+              truth.name,
+              gnr);
 }
 
 // Counts of seeds (of kSeeds) meeting a predicate.
@@ -451,6 +480,38 @@ TEST(PaperRegimeTest, ServicePicksLm6OnGlassAndRefusesTieTruths) {
   }
   std::printf("service, glass: mean BF-ratio error %.4f\n", sum_bf / kSeeds);
   EXPECT_LT(sum_bf / kSeeds, 0.025);
+}
+
+// Where Step 1's premise holds (the stiff docs truth, sigma0 50 /mm, 200 Hz,
+// per-stroke Fn 2-5 N) the service keeps the two-step GNR+LM-2 and says so.
+TEST(PaperRegimeTest, ServiceKeepsTwoStepWhereTheSlowStrokeIsQuasiStatic) {
+  for (std::uint64_t seed : {21u, 22u, 23u}) {
+    testing::LuGreStrokeSpec slow;
+    slow.strokes = 1;
+    slow.hold_s = 0.0;
+    slow.accel_min_mm_s2 = 1.5;
+    slow.accel_max_mm_s2 = 2.5;
+    slow.v_min_mm_s = 15.0;
+    slow.v_max_mm_s = 25.0;
+    StrokeData d = testing::SimulateLuGreStrokes(slow, seed);
+    testing::LuGreStrokeSpec fast;
+    fast.strokes = 2;
+    fast.v_min_mm_s = 8.0;
+    fast.v_max_mm_s = 12.0;
+    fast.accel_min_mm_s2 = 15.0;
+    fast.accel_max_mm_s2 = 40.0;
+    StrokeData f = testing::SimulateLuGreStrokes(fast, seed + 100);
+    const double t0 = d.t_s.back() + 5.0;
+    for (double& t : f.t_s) t += t0;
+    d.Append(f);
+    const LuGreIdentification id = IdentifyLuGreFromStrokes(d);
+    ASSERT_TRUE(id.identified) << seed << ": " << id.why;
+    EXPECT_EQ(id.family.variant, "lm2") << id.why;
+    EXPECT_EQ(id.why.rfind("two-step GNR+LM-2: Step-1 RMS", 0), 0u) << id.why;
+    const LuGreTheta truth = slow.theta;
+    EXPECT_LT(std::abs(id.family.theta[4] / truth[4] - 1), 0.1)
+        << id.family.theta[4];
+  }
 }
 
 }  // namespace
