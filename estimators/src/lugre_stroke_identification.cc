@@ -50,6 +50,7 @@ constexpr double kQuasiStaticNoiseRatio = 2.0;
 // at break-away: an LM-6 sigma1 near 0 doubled the predicted BF-ratio).
 constexpr double kLm6NoiseRatio = 2.0;
 constexpr double kMaxLm6RelStd = 0.1;
+constexpr double kMinNoiseMu = 1e-4;  // floor of the noise estimate
 
 std::string Num(double x) {
   char buf[32];
@@ -590,7 +591,9 @@ LuGreIdentification Identify(const StrokeData& all) {
   // is run on the newest accepted dynamic stroke from the two-step result,
   // and kept only if it explains that stroke to the noise and pins down
   // mu_s, mu_c and v0; otherwise nothing is identified and `why` says so.
-  const double noise = EstimateNoise(qs);
+  // Floor 1e-4 (below any force sensor's resolution in Ft/Fn) so that
+  // noise-free data compare against a model error, not against rounding.
+  const double noise = std::max(EstimateNoise(qs), kMinNoiseMu);
   const std::string two_step =
       std::string("GNR+") + (family.variant == "lm2" ? "LM-2" : "LM-1");
   if (std::isfinite(noise) && noise > 0 &&
