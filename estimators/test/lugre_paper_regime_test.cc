@@ -315,6 +315,17 @@ TEST(PaperRegimeTest, TieTruthsStepOneIsNotQuasiStatic) {
 }
 
 TEST(PaperRegimeTest, TableIEkfAndLm2) {
+  // The tie in friction-ratio form needs the stroke's own Fn: at Table I's
+  // 20 N, CalcDampingGain(1 kg, 20 N, 0.5) sqrt(sigma0) is Table I's sigma1
+  // (0.089 = 0.0316 sqrt(8) in force form) to 0.5 %; the 5 N default gain
+  // would tie sigma1 to twice that.
+  const PaperTruth t = TableI();
+  EXPECT_NEAR(CalcDampingGain(1.0, t.fn_n, 0.5) * std::sqrt(t.theta[4]),
+              t.theta[5],
+              5e-3 * t.theta[5]);
+  EXPECT_NEAR(DynamicFitOptions().damping_gain * std::sqrt(t.theta[4]),
+              2.0 * t.theta[5],
+              1e-2 * t.theta[5]);
   const std::vector<SeedRun> runs = RunSeeds(TableI());
   // The EKF (tie) recovers sigma0 within 6 % on every seed (measured max
   // 5.0 %) ...
