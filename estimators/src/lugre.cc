@@ -377,6 +377,10 @@ bool ForceDrivenOptions::IsValid(std::string* why) const {
     return Fail(why, "mass_kg", mass_kg, "finite and > 0");
   if (!(mu_applied0 >= 0) || !std::isfinite(mu_applied0))
     return Fail(why, "mu_applied0", mu_applied0, "finite and >= 0");
+  if (!std::isfinite(initial_v_mm_s))
+    return Fail(why, "initial_v_mm_s", initial_v_mm_s, "finite");
+  if (!std::isfinite(initial_z_mm))
+    return Fail(why, "initial_z_mm", initial_z_mm, "finite");
   if (!(t_end_s > 0) || !std::isfinite(t_end_s))
     return Fail(why, "t_end_s", t_end_s, "finite and > 0");
   if (!(breakaway_speed_factor > 0) || !std::isfinite(breakaway_speed_factor))
@@ -454,7 +458,7 @@ ForceDrivenResult SimulateForceDriven(
 
   ForceDrivenResult result;
   double t = 0.0;
-  Eigen::Vector2d y = Eigen::Vector2d::Zero();
+  Eigen::Vector2d y(options.initial_v_mm_s, options.initial_z_mm);
   double mu = 0.0;
   Eigen::Matrix2d J;
   Eigen::Vector2d f0 = f(t, y, &mu, &J);

@@ -188,6 +188,11 @@ struct ForceDrivenOptions {
   double mass_kg = 0.2;
   /// Applied drag ratio at t = 0 [-] (Table II: G/Fn), finite, >= 0.
   double mu_applied0 = 0.0;
+  /// Sliding velocity of the object at t = 0 [mm/s], finite (Table II: 0).
+  double initial_v_mm_s = 0.0;
+  /// Bristle deflection at t = 0 [mm], finite (Table II: 0). To start from
+  /// a measured held state use CalcHeldBristleDeflection (breakaway.h).
+  double initial_z_mm = 0.0;
   /// Give up (kNoBreakaway) at this time [s], > 0 (Table II: 50).
   double t_end_s = 50.0;
   /// Break-away is declared when v exceeds factor * v0, > 0.
@@ -235,12 +240,13 @@ struct ForceDrivenResult {
 /// mass m held by the contact at normal force fn_n is pulled with applied
 /// drag ratio mu_e(t) = mu_applied0 + rho t (eq. 16); its velocity obeys
 /// m dv/dt = Fn (mu_e - mu_f) (eqs. 17, 19) and z obeys eq. 1 (eq. 20),
-/// from v = 0, z = 0 (Table II). The stick phase is stiff (contact frequency
-/// sqrt(1000 Fn sigma0 / m) ~ 1e3 rad/s against a ramp of seconds), so this
-/// uses the linearly implicit Rosenbrock 2(3) pair of Shampine & Reichelt
-/// (MATLAB ode23s) with step control instead of the paper's ode45; that is
-/// what keeps one prediction in the tens of microseconds.
-/// Break-away: v > breakaway_speed_factor * v0; bf_ratio = max mu_f so far.
+/// from v = initial_v_mm_s, z = initial_z_mm (Table II: both 0). The stick
+/// phase is stiff (contact frequency sqrt(1000 Fn sigma0 / m) ~ 1e3 rad/s
+/// against a ramp of seconds), so this uses the linearly implicit Rosenbrock
+/// 2(3) pair of Shampine & Reichelt (MATLAB ode23s) with step control instead
+/// of the paper's ode45; that is what keeps one prediction in the tens of
+/// microseconds. Break-away: v > breakaway_speed_factor * v0; bf_ratio = max
+/// mu_f so far.
 /// @param rho_per_s drag-ratio rate rho [1/s], finite and > 0.
 /// @param fn_n normal force [N], > 0.
 /// @param trajectory if not null, receives every accepted step.

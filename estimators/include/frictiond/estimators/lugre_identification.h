@@ -431,7 +431,9 @@ std::vector<RecognizedStroke> RecognizeLuGreStrokes(const StrokeData& data);
 /// Result of IdentifyLuGreFromStrokes.
 struct LuGreIdentification {
   /// True when a family was identified; otherwise `why` says what is
-  /// missing (a normal outcome: e.g. no high-acceleration stroke yet).
+  /// missing (a normal outcome: e.g. no high-acceleration stroke yet, or
+  /// a low-acceleration stroke that is not quasi-static). When identified,
+  /// `why` says which variant was kept and why.
   bool identified = false;
   LuGreFamily family;
   std::string why;
@@ -452,6 +454,15 @@ struct LuGreIdentification {
 /// residual RMS is at most 3 times Step 1's. Up to four accepted fits (of
 /// at most twelve tried, 40 000 samples) are combined by their information
 /// matrices (sigma0, sigma1), LM-2 fits preferred over LM-1.
+/// Then Step 1's premise (eq. 4, dz/dt ~ 0 on the slow stroke) is checked:
+/// its residual RMS must be <= 2x the noise of mu estimated from second
+/// differences of the slow strokes. Where it fails (compliant bristles as in
+/// paper 001 Tables I, III, V: the slow stroke keeps a hysteresis and Step 1
+/// flattens the Stribeck curve), LM-6 is run on the newest accepted dynamic
+/// stroke from the two-step result and kept ("lm6") only if it converged,
+/// fits to <= 2x the noise and has std/value <= 0.1 for mu_s, mu_c and
+/// <= 0.2 for v0, sigma1; otherwise identified = false and `why` says the
+/// strokes cannot identify the model (docs/lugre.md, "Paper regime").
 /// Departure from the paper: the paper fits one stroke of each kind; this
 /// pools every recognised stroke so that later uploads refine the model.
 /// Needs at least one stroke of each kind; otherwise identified = false
