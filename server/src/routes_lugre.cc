@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -39,8 +40,14 @@ double PositiveParam(const HttpRequest& req,
 }
 
 HttpResponse HandleBreakaway(FrictionLibrary& lib, const HttpRequest& req) {
-  static const char* const kAllowed[] = {
-      "rho", "fn_n", "mass_kg", "fingertip", "version", "robot"};
+  static const char* const kAllowed[] = {"rho",
+                                         "fn_n",
+                                         "mass_kg",
+                                         "mu_applied",
+                                         "v_mm_s",
+                                         "fingertip",
+                                         "version",
+                                         "robot"};
   for (const auto& [key, value] : req.query) {
     if (std::find_if(std::begin(kAllowed),
                      std::end(kAllowed),
@@ -50,7 +57,8 @@ HttpResponse HandleBreakaway(FrictionLibrary& lib, const HttpRequest& req) {
                          key,
                          "query parameter " + key.substr(0, 64) +
                              " is not known (allowed: rho, fn_n, mass_kg, "
-                             "fingertip, version, robot)");
+                             "mu_applied, v_mm_s, fingertip, version, "
+                             "robot)");
     }
   }
   const double rho = PositiveParam(req, "rho", " [1/s]");
@@ -84,8 +92,44 @@ HttpResponse HandleBreakaway(FrictionLibrary& lib, const HttpRequest& req) {
     throw std::runtime_error(std::string("stored LuGre family is malformed: ") +
                              e.what());
   }
-  const ForceDrivenResult r =
-      PredictBreakawayRatio(family.theta, rho, fn_n, options);
+  // With the measured drag ratio (and slip velocity), the prediction starts
+  // from the state they imply (paper 001 eq. (16), breakaway.h
+  // PredictBreakawayRatioFromState); otherwise from rest as in Table II.
+  std::optional<double> mu_applied;
+  double v_mm_s = 0.0;
+  if (req.Query("mu_applied")) {
+    mu_applied = req.RequireNumber("mu_applied");
+    if (!(*mu_applied >= 0))
+      throw RequestError(
+          StatusCode::kInvalidArgument,
+          "mu_applied",
+          "mu_applied = " + Num(*mu_applied) + " (must be >= 0)");
+  }
+  if (req.Query("v_mm_s")) {
+    if (!mu_applied)
+      throw RequestError(StatusCode::kInvalidArgument,
+                         "v_mm_s",
+                         "v_mm_s is the measured slip velocity of the state "
+                         "mu_applied names: give mu_applied too");
+    v_mm_s = req.RequireNumber("v_mm_s");
+  }
+  ForceDrivenResult r;
+  if (mu_applied) {
+    try {
+      r = PredictBreakawayRatioFromState(
+          family.theta, *mu_applied, v_mm_s, rho, fn_n, options);
+    } catch (const std::invalid_argument& e) {
+      // E.g. sigma1 |v| >= g(v): no bristle state holds that ratio.
+      throw RequestError(
+          StatusCode::kFailedPrecondition,
+          "mu_applied",
+          std::string("mu_applied = ") + Num(*mu_applied) +
+              ", v_mm_s = " + Num(v_mm_s) +
+              ": no state of the stored LuGre model: " + e.what());
+    }
+  } else {
+    r = PredictBreakawayRatio(family.theta, rho, fn_n, options);
+  }
   auto finite = [](double x) { return std::isfinite(x) ? json(x) : json(); };
   json body = {{"material", id},
                {"fingertip", model->set.fingertip},
@@ -97,7 +141,9 @@ HttpResponse HandleBreakaway(FrictionLibrary& lib, const HttpRequest& req) {
                {"fn_n", fn_n},
                {"mass_kg", options.mass_kg},
                {"status", ToString(r.status)},
-               {"steps", r.steps}};
+               {"steps", r.steps},
+               {"from_measured_state", mu_applied.has_value()}};
+  if (mu_applied) body["v_mm_s"] = v_mm_s;
   if (!r.why.empty()) body["why"] = r.why;
   return HttpResponse::Json(200, body);
 }

@@ -305,6 +305,28 @@ TEST_F(LuGreRoutesTest, BreakawayMatchesTruthPrediction) {
   EXPECT_DOUBLE_EQ(json::parse(heavy.body)["mass_kg"].get<double>(), 1.5);
 }
 
+TEST_F(LuGreRoutesTest, BreakawayFromTheMeasuredStateMatchesTruth) {
+  // A grasp already carrying mu_applied = 0.3 (held, v = 0): the route's
+  // prediction from that state (eq. (16)) against the truth's.
+  Upload("steel", TwoStrokeCsv());
+  for (double rho : {0.05, 0.5}) {
+    const HttpResponse r = Get(
+        "/v1/materials/steel/breakaway",
+        {{"rho", std::to_string(rho)}, {"fn_n", "5"}, {"mu_applied", "0.3"}});
+    ASSERT_EQ(r.status, 200) << r.body;
+    const json j = json::parse(r.body);
+    EXPECT_EQ(j["from_measured_state"], true);
+    const ForceDrivenResult truth =
+        PredictBreakawayRatioFromState(Truth(), 0.3, 0.0, rho, kFn);
+    ASSERT_EQ(truth.status, SimulationStatus::kOk) << truth.why;
+    EXPECT_LT(RelErr(j["bf_ratio"].get<double>(), truth.bf_ratio), 0.03)
+        << "expected " << truth.bf_ratio << ", got " << j["bf_ratio"];
+  }
+  ExpectBadParam({{"rho", "0.5"}, {"fn_n", "5"}, {"v_mm_s", "1"}}, "v_mm_s");
+  ExpectBadParam({{"rho", "0.5"}, {"fn_n", "5"}, {"mu_applied", "-1"}},
+                 "mu_applied");
+}
+
 TEST_F(LuGreRoutesTest, UnknownMaterialIs404WithIdentificationRequest) {
   const HttpResponse r = Get("/v1/materials/unobtainium/breakaway",
                              {{"rho", "0.5"}, {"fn_n", "5"}});
