@@ -9,6 +9,8 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
+#include "frictiond/estimators/least_squares.h"
+
 namespace frictiond {
 
 namespace {
@@ -35,6 +37,32 @@ Eigen::Isometry3d DhTransform(const DhJoint& j, double q) {
   Eigen::Isometry3d t;
   t.matrix() = m;
   return t;
+}
+
+// Tip position x(q) and the position Jacobian *J = dx/dq
+// (3 x n: axis x (tip - origin) for revolute joints, the axis for
+// prismatic ones), in one pass over the chain.
+Eigen::Vector3d CalcTipAndJacobian(
+    const SerialArm& arm,
+    const Eigen::Ref<const Eigen::VectorXd>& q,
+    Eigen::Matrix<double, 3, Eigen::Dynamic>* J) {
+  const Eigen::Index n = q.size();
+  std::vector<Eigen::Vector3d> origin(static_cast<std::size_t>(n)),
+      axis(static_cast<std::size_t>(n));
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  for (Eigen::Index i = 0; i < n; ++i) {
+    origin[static_cast<std::size_t>(i)] = t.translation();
+    axis[static_cast<std::size_t>(i)] = t.linear().col(2);
+    t = t * DhTransform(arm.joints[static_cast<std::size_t>(i)], q[i]);
+  }
+  const Eigen::Vector3d tip = t.translation();
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    J->col(i) = arm.joints[k].type == JointType::kRevolute
+                    ? Eigen::Vector3d(axis[k].cross(tip - origin[k]))
+                    : axis[k];
+  }
+  return tip;
 }
 
 void CheckSize(const SerialArm& arm, Eigen::Index n) {
@@ -101,23 +129,8 @@ Eigen::Vector3d CalcEndEffectorPosition(
 Eigen::Matrix<double, 3, Eigen::Dynamic> CalcPositionJacobian(
     const SerialArm& arm, const Eigen::Ref<const Eigen::VectorXd>& q) {
   CheckSize(arm, q.size());
-  const Eigen::Index n = q.size();
-  std::vector<Eigen::Vector3d> origin(static_cast<std::size_t>(n)),
-      axis(static_cast<std::size_t>(n));
-  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
-  for (Eigen::Index i = 0; i < n; ++i) {
-    origin[static_cast<std::size_t>(i)] = t.translation();
-    axis[static_cast<std::size_t>(i)] = t.linear().col(2);
-    t = t * DhTransform(arm.joints[static_cast<std::size_t>(i)], q[i]);
-  }
-  const Eigen::Vector3d tip = t.translation();
-  Eigen::Matrix<double, 3, Eigen::Dynamic> J(3, n);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const auto k = static_cast<std::size_t>(i);
-    J.col(i) = arm.joints[k].type == JointType::kRevolute
-                   ? Eigen::Vector3d(axis[k].cross(tip - origin[k]))
-                   : axis[k];
-  }
+  Eigen::Matrix<double, 3, Eigen::Dynamic> J(3, q.size());
+  CalcTipAndJacobian(arm, q, &J);
   return J;
 }
 
@@ -187,29 +200,45 @@ IkResult SolvePositionIk(const SerialArm& arm,
     q_hi[i] = arm.joints[static_cast<std::size_t>(i)].q_max;
   }
   q = q.cwiseMax(q_lo).cwiseMin(q_hi);
-  Eigen::Vector3d err = target_mm - CalcEndEffectorPosition(arm, q);
-  double lambda2 = 1e-4;
+  // Damped least squares (Levenberg damping, least_squares.h): residual
+  // r(q) = x(q) - target (3 entries), J = dx/dq; the step
+  // (J^T J + mu I)^-1 J^T e = J^T (J J^T + mu I)^-1 e is the damped
+  // least-norm step, mu = lambda trace(J^T J) / n, so lambda = lambda2 n / 3
+  // with lambda2 the damping relative to trace(J J^T) / 3 (start 1e-4).
+  // Steps are accepted when |e| falls; the solve stops once |e| <=
+  // tolerance_mm, or when no damping finds descent.
+  const double n3 = static_cast<double>(n) / 3.0;
+  LeastSquaresOptions lm;
+  lm.damping = LeastSquaresDamping::kLevenberg;
+  lm.allow_underdetermined = true;
+  lm.initial_lambda = 1e-4 * n3;
+  lm.min_lambda = 1e-12 * n3;
+  lm.min_diagonal = 1e-12 / n3;
+  lm.max_step_tries = 20;  // from the lambda floor up to ~1e6 trace / 3
+  lm.cost_tolerance = 0.0;
+  lm.step_tolerance = 0.0;
+  lm.strict_decrease = true;
+  lm.target_cost = tolerance_mm > 0 && std::isfinite(tolerance_mm)
+                       ? tolerance_mm * tolerance_mm
+                       : 0.0;
   int it = 0;
-  for (; it < max_iterations && err.norm() > tolerance_mm; ++it) {
-    const Eigen::Matrix<double, 3, Eigen::Dynamic> J =
-        CalcPositionJacobian(arm, q);
-    const Eigen::Matrix3d JJt = J * J.transpose();
-    const double scale = std::max(JJt.trace() / 3.0, 1e-12);
-    Eigen::Matrix3d M = JJt;
-    M.diagonal().array() += lambda2 * scale;
-    Eigen::VectorXd q_new =
-        (q + J.transpose() * M.ldlt().solve(err)).cwiseMax(q_lo).cwiseMin(q_hi);
-    const Eigen::Vector3d err_new =
-        target_mm - CalcEndEffectorPosition(arm, q_new);
-    if (err_new.norm() < err.norm()) {
-      q = q_new;
-      err = err_new;
-      lambda2 = std::max(lambda2 / 10, 1e-12);
-    } else {
-      lambda2 *= 10;
-      if (lambda2 > 1e6) break;
-    }
+  const bool in_limits =
+      ((q.array() >= q_lo.array()) && (q.array() <= q_hi.array())).all();
+  if (max_iterations > 0 && in_limits) {
+    lm.max_iterations = max_iterations;
+    auto residual =
+        [&](const Eigen::VectorXd& qq, Eigen::VectorXd* r, Eigen::MatrixXd* J) {
+          Eigen::Matrix<double, 3, Eigen::Dynamic> J3(3, qq.size());
+          *r = CalcTipAndJacobian(arm, qq, &J3) - target_mm;
+          *J = J3;
+          return r->allFinite() && J->allFinite();
+        };
+    LeastSquaresWorkspace<Eigen::Dynamic> ws(3, n);
+    const LeastSquaresSummary<Eigen::Dynamic> s =
+        SolveLeastSquares<Eigen::Dynamic>(residual, &q, q_lo, q_hi, lm, &ws);
+    it = s.iterations;
   }
+  const Eigen::Vector3d err = target_mm - CalcEndEffectorPosition(arm, q);
   out.q = q;
   out.error_mm = err.norm();
   out.iterations = it;
