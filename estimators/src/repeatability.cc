@@ -42,10 +42,10 @@ Eigen::Isometry3d DhTransform(const DhJoint& j, double q) {
 // Tip position x(q) and the position Jacobian *J = dx/dq
 // (3 x n: axis x (tip - origin) for revolute joints, the axis for
 // prismatic ones), in one pass over the chain.
-Eigen::Vector3d CalcTipAndJacobian(
-    const SerialArm& arm,
-    const Eigen::Ref<const Eigen::VectorXd>& q,
-    Eigen::Matrix<double, 3, Eigen::Dynamic>* J) {
+template <typename JacobianMatrix>
+Eigen::Vector3d CalcTipAndJacobian(const SerialArm& arm,
+                                   const Eigen::Ref<const Eigen::VectorXd>& q,
+                                   JacobianMatrix* J) {
   const Eigen::Index n = q.size();
   std::vector<Eigen::Vector3d> origin(static_cast<std::size_t>(n)),
       axis(static_cast<std::size_t>(n));
@@ -84,6 +84,31 @@ double ChiSquareCdf(int r, double x) {
       return std::erf(std::sqrt(x / 2)) -
              std::sqrt(2 * x / kPi) * std::exp(-x / 2);
   }
+}
+
+// SolvePositionIk's solve with N parameters (N = q->size() or Dynamic):
+// residual r(q) = x(q) - target, J = dx/dq. Returns the iterations.
+template <int N>
+int RunPositionIk(const SerialArm& arm,
+                  const Eigen::Vector3d& target_mm,
+                  const LeastSquaresOptions& options,
+                  const Eigen::VectorXd& q_lo,
+                  const Eigen::VectorXd& q_hi,
+                  Eigen::VectorXd* q) {
+  using Vec = Eigen::Matrix<double, N, 1>;
+  auto residual = [&](const Vec& qq,
+                      Eigen::VectorXd* r,
+                      typename LeastSquaresWorkspace<N>::Jacobian* J) {
+    *r = CalcTipAndJacobian(arm, qq, J) - target_mm;
+    return r->allFinite() && J->allFinite();
+  };
+  Vec x = *q;
+  const Vec lo = q_lo, hi = q_hi;
+  LeastSquaresWorkspace<N> ws(3, q->size());
+  const LeastSquaresSummary<N> s =
+      SolveLeastSquares<N>(residual, &x, lo, hi, options, &ws);
+  *q = x;
+  return s.iterations;
 }
 
 }  // namespace
@@ -218,6 +243,7 @@ IkResult SolvePositionIk(const SerialArm& arm,
   lm.cost_tolerance = 0.0;
   lm.step_tolerance = 0.0;
   lm.strict_decrease = true;
+  lm.compute_covariance = false;  // only q is wanted
   lm.target_cost = tolerance_mm > 0 && std::isfinite(tolerance_mm)
                        ? tolerance_mm * tolerance_mm
                        : 0.0;
@@ -226,17 +252,14 @@ IkResult SolvePositionIk(const SerialArm& arm,
       ((q.array() >= q_lo.array()) && (q.array() <= q_hi.array())).all();
   if (max_iterations > 0 && in_limits) {
     lm.max_iterations = max_iterations;
-    auto residual =
-        [&](const Eigen::VectorXd& qq, Eigen::VectorXd* r, Eigen::MatrixXd* J) {
-          Eigen::Matrix<double, 3, Eigen::Dynamic> J3(3, qq.size());
-          *r = CalcTipAndJacobian(arm, qq, &J3) - target_mm;
-          *J = J3;
-          return r->allFinite() && J->allFinite();
-        };
-    LeastSquaresWorkspace<Eigen::Dynamic> ws(3, n);
-    const LeastSquaresSummary<Eigen::Dynamic> s =
-        SolveLeastSquares<Eigen::Dynamic>(residual, &q, q_lo, q_hi, lm, &ws);
-    it = s.iterations;
+    // Fixed sizes for the common 3- and 6-joint arms (no heap in the loop).
+    if (n == 3) {
+      it = RunPositionIk<3>(arm, target_mm, lm, q_lo, q_hi, &q);
+    } else if (n == 6) {
+      it = RunPositionIk<6>(arm, target_mm, lm, q_lo, q_hi, &q);
+    } else {
+      it = RunPositionIk<Eigen::Dynamic>(arm, target_mm, lm, q_lo, q_hi, &q);
+    }
   }
   const Eigen::Vector3d err = target_mm - CalcEndEffectorPosition(arm, q);
   out.q = q;

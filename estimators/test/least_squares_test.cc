@@ -356,6 +356,13 @@ TEST(SolveLeastSquares, LevenbergDampingSolvesUnderdeterminedMinimumNorm) {
   const Eigen::Vector4d min_norm =
       A.transpose() * (A * A.transpose()).ldlt().solve(b);
   for (int i = 0; i < 4; ++i) EXPECT_NEAR(x[i], min_norm[i], 1e-8) << i;
+  // Without the final covariance: same answer, rcond NaN.
+  o.compute_covariance = false;
+  Eigen::Vector4d z = Eigen::Vector4d::Zero();
+  const auto t = SolveLeastSquares<4>(f, &z, lo, hi, o, &ws);
+  ASSERT_EQ(t.status, LeastSquaresStatus::kConverged) << t.why;
+  EXPECT_TRUE(std::isnan(t.rcond));
+  for (int i = 0; i < 4; ++i) EXPECT_EQ(z[i], x[i]) << i;
 }
 
 TEST(SolveLeastSquares, RejectsBadExtensionOptionsNamingTheField) {

@@ -54,7 +54,8 @@
 ///   options.allow_underdetermined lets m < n (LM only: the damping makes
 ///   the system solvable); options.target_cost stops as soon as
 ///   C(x) <= target_cost; options.min_lambda floors lambda; and
-///   options.strict_decrease accepts a trial only when C(trial) < C(x).
+///   options.strict_decrease accepts a trial only when C(trial) < C(x);
+///   options.compute_covariance = false skips the final rcond/JtJ_inv.
 /// - The split overload SolveLeastSquares(residual, jacobian, x, ...) is
 ///   for problems whose Jacobian is dear (finite differences over a
 ///   simulation) or whose steps are judged by a criterion other than
@@ -154,6 +155,10 @@ struct LeastSquaresOptions {
   /// then 0 and the status kRankDeficient unless target_cost was reached,
   /// which counts as kConverged.
   bool allow_underdetermined = false;
+  /// After the loop, compute rcond and JtJ_inv (and report kRankDeficient);
+  /// false skips that work for callers that need only x (rcond is then
+  /// NaN, JtJ_inv not set, and the status never kRankDeficient).
+  bool compute_covariance = true;
 
   /// True if every field satisfies its rule; otherwise *why (if not null)
   /// names the field, its value and the rule.
@@ -340,6 +345,17 @@ LeastSquaresSummary<N> RunLeastSquares(Trial&& trial,
   }
   out.iterations = it;
   out.cost = cost;
+  if (!options.compute_covariance) {
+    out.rcond = std::numeric_limits<double>::quiet_NaN();
+    if (reached_target || converged) {
+      out.status = LeastSquaresStatus::kConverged;
+    } else {
+      out.status = LeastSquaresStatus::kMaxIterations;
+      out.why = "max_iterations = " + std::to_string(options.max_iterations) +
+                " reached";
+    }
+    return out;
+  }
   A.noalias() = ws->J.transpose() * ws->J;
   const Vec d =
       A.diagonal().cwiseMax(options.min_diagonal).cwiseSqrt().cwiseInverse();
