@@ -5,8 +5,11 @@
 /// halving, for problems with few parameters (fixed N, or Eigen::Dynamic)
 /// and many residuals. It serves the LuGre fits (paper 001 eq. 14, both
 /// steps), the joint-friction fits (paper 002) and the reciprocal form of
-/// mu = f(Fn) (paper 000 Table II). In the spirit of Ceres'
-/// tiny_solver.h: this header is the manual.
+/// mu = f(Fn) (paper 000 Table II), and through the extensions below the
+/// actuator identification (smoothed-L1 rollout residuals, issue 20) and
+/// the position inverse kinematics of the repeatability ellipsoids (paper
+/// 002, Section 6). In the spirit of Ceres' tiny_solver.h: this header is
+/// the manual.
 ///
 /// Problem: minimise C(x) = |r(x)|^2 over lower <= x <= upper, where the
 /// caller's functor fills r (m residuals) and J = dr/dx (m x N):
