@@ -2,11 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <random>
 #include <stdexcept>
 
 #include <Eigen/Dense>
+
+#include "frictiond/estimators/least_squares.h"
 
 namespace frictiond {
 
@@ -182,7 +185,13 @@ double SimulateActuatorLog(const ActuatorModel& m,
   const double half_gap = 0.5 * m.backlash_rad;
   const bool backlash = half_gap > 0 && m.armature_kg_m2 > 0;
   if (trace) {
-    *trace = ActuatorRolloutTrace{};
+    // Emptied, keeping capacity (a reused trace does not reallocate).
+    for (std::vector<double>* v : {&trace->q_rad,
+                                   &trace->dq_rad_s,
+                                   &trace->motor_torque_nm,
+                                   &trace->external_torque_nm,
+                                   &trace->friction_torque_nm})
+      v->clear();
     trace->q_rad.reserve(n);
     trace->dq_rad_s.reserve(n);
     trace->motor_torque_nm.reserve(n);
@@ -470,24 +479,35 @@ class SetObjective {
     const double f = CalcActuatorSetMae(ModelAt(u), logs_);
     return std::isfinite(f) ? f : kDivergedMaeRad;
   }
-  // Smoothed-L1 residuals e / sqrt(|e| + delta) over all entries.
-  Eigen::VectorXd Residuals(const Eigen::VectorXd& u, double delta) {
-    ++evaluations_;
-    const ActuatorModel m = ModelAt(u);
+  // Entries of all logs (the number of residuals).
+  Eigen::Index Entries() const {
     std::size_t total = 0;
     for (const ActuatorLog* log : logs_) total += log->size();
-    Eigen::VectorXd r(total);
-    std::size_t at = 0;
-    ActuatorRolloutTrace trace;
+    return static_cast<Eigen::Index>(total);
+  }
+  // One rollout of the set at u: fills *r (Entries() entries) with the
+  // smoothed-L1 residuals e / sqrt(|e| + delta), e = q_sim - q (an entry
+  // that diverged counts as e = kDivergedMaeRad), and returns the set's
+  // mean absolute error exactly as Mae(u) does (the criterion).
+  double Residuals(const Eigen::VectorXd& u, double delta, Eigen::VectorXd* r) {
+    ++evaluations_;
+    const ActuatorModel m = ModelAt(u);
+    r->resize(Entries());
+    Eigen::Index at = 0;
+    double sum = 0;
+    std::size_t count = 0;
     for (const ActuatorLog* log : logs_) {
-      SimulateActuatorLog(m, *log, &trace);
+      sum += SimulateActuatorLog(m, *log, &trace_) *
+             static_cast<double>(log->size());
+      count += log->size();
       for (std::size_t k = 0; k < log->size(); ++k) {
-        double e = trace.q_rad[k] - log->q_rad[k];
+        double e = trace_.q_rad[k] - log->q_rad[k];
         if (!std::isfinite(e)) e = kDivergedMaeRad;
-        r[at++] = e / std::sqrt(std::abs(e) + delta);
+        (*r)[at++] = e / std::sqrt(std::abs(e) + delta);
       }
     }
-    return r;
+    const double f = count ? sum / static_cast<double>(count) : 0.0;
+    return std::isfinite(f) ? f : kDivergedMaeRad;
   }
   int evaluations() const { return evaluations_; }
 
@@ -495,6 +515,7 @@ class SetObjective {
   const std::vector<const ActuatorLog*>& logs_;
   ActuatorModel model_;
   std::vector<ActuatorParam> free_;
+  ActuatorRolloutTrace trace_;  // reused by Residuals
   int evaluations_ = 0;
 };
 
@@ -600,44 +621,58 @@ ActuatorFitResult FitActuatorModel(const std::vector<const ActuatorLog*>& logs,
       u = un;
     }
   }
-  // Stage 2: Levenberg-Marquardt on smoothed-L1 residuals, accepting a step
-  // only when the mean absolute error (the criterion) falls.
+  // Stage 2: Levenberg-Marquardt (least_squares.h, split form) on the
+  // smoothed-L1 residuals e / sqrt(|e| + delta) (their squares sum to
+  // ~sum |e|, a smooth stand-in for the L1 criterion), with forward-
+  // difference Jacobians (step h in u), accepting a step only when the mean
+  // absolute error (the criterion, the solver's cost) falls strictly. The
+  // parameters are unbounded in u (logistic map), so the box is infinite.
   const int p = static_cast<int>(free.size());
   const double h = 1e-3;
-  double lambda = 1e-2;
-  Eigen::MatrixXd J;
-  auto jacobian = [&](const Eigen::VectorXd& uc, const Eigen::VectorXd& rc) {
-    J.resize(rc.size(), p);
+  LeastSquaresWorkspace<Eigen::Dynamic> ws(obj.Entries(), p);
+  Eigen::VectorXd r_h;
+  auto residual =
+      [&](const Eigen::VectorXd& uc, Eigen::VectorXd* r, double* criterion) {
+        *criterion = obj.Residuals(uc, options.huber_rad, r);
+        return true;
+      };
+  auto jacobian = [&](const Eigen::VectorXd& uc,
+                      const Eigen::VectorXd& rc,
+                      Eigen::MatrixXd* J) {
     for (int j = 0; j < p; ++j) {
       Eigen::VectorXd up = uc;
       up[j] += h;
-      J.col(j) = (obj.Residuals(up, options.huber_rad) - rc) / h;
+      obj.Residuals(up, options.huber_rad, &r_h);
+      J->col(j) = (r_h - rc) / h;
     }
+    return J->allFinite();
   };
-  Eigen::VectorXd r = obj.Residuals(u, options.huber_rad);
-  for (int it = 0; it < options.lm_iterations; ++it) {
-    jacobian(u, r);
-    const Eigen::MatrixXd A = J.transpose() * J;
-    const Eigen::VectorXd g = J.transpose() * r;
-    bool improved = false;
-    for (int tries = 0; tries < 6 && !improved; ++tries) {
-      Eigen::MatrixXd Ad = A;
-      Ad.diagonal() += lambda * (A.diagonal().array() + 1e-12).matrix();
-      const Eigen::VectorXd du = Ad.ldlt().solve(-g);
-      if (!du.allFinite()) break;
-      const Eigen::VectorXd un = u + du;
-      const double f = obj.Mae(un);
-      if (f < f_best) {
-        f_best = f;
-        u = un;
-        lambda = std::max(1e-6, lambda * 0.3);
-        improved = true;
-      } else {
-        lambda *= 10.0;
-      }
+  bool have_jacobian = false;
+  if (options.lm_iterations > 0) {
+    LeastSquaresOptions lm;
+    lm.max_iterations = options.lm_iterations;
+    lm.cost_tolerance = 0.0;  // run the iterations while the MAE falls
+    lm.step_tolerance = 0.0;
+    lm.initial_lambda = 1e-2;
+    lm.lambda_increase = 10.0;
+    lm.lambda_decrease = 1.0 / 0.3;
+    lm.min_lambda = 1e-6;
+    lm.max_step_tries = 6;
+    lm.min_diagonal = 1e-12;
+    lm.strict_decrease = true;
+    const Eigen::VectorXd inf =
+        Eigen::VectorXd::Constant(p, std::numeric_limits<double>::infinity());
+    Eigen::VectorXd u_lm = u;
+    const LeastSquaresSummary<Eigen::Dynamic> s =
+        SolveLeastSquares<Eigen::Dynamic>(
+            residual, jacobian, &u_lm, Eigen::VectorXd(-inf), inf, lm, &ws);
+    // s.cost <= f_best: the solver starts at u and only accepts steps
+    // that lower the MAE. ws.r and ws.J are those at u_lm.
+    if (s.status != LeastSquaresStatus::kFailed) {
+      u = u_lm;
+      f_best = s.cost;
+      have_jacobian = true;
     }
-    if (!improved) break;
-    r = obj.Residuals(u, options.huber_rad);
   }
   result.model = obj.ModelAt(u);
   result.mae_rad = f_best;
@@ -645,8 +680,13 @@ ActuatorFitResult FitActuatorModel(const std::vector<const ActuatorLog*>& logs,
   // in u, mapped through dp/du, inflated by sqrt(N / N_eff) with N_eff from
   // the lag-1 autocorrelation of the residuals (rollout errors are smooth
   // in time, so the entries are far from independent).
-  r = obj.Residuals(u, options.huber_rad);
-  jacobian(u, r);
+  if (!have_jacobian) {
+    double criterion = 0;
+    residual(u, &ws.r, &criterion);
+    jacobian(u, ws.r, &ws.J);
+  }
+  const Eigen::VectorXd& r = ws.r;
+  const Eigen::MatrixXd& J = ws.J;
   const double n = static_cast<double>(r.size());
   const double s2 = r.squaredNorm() / std::max(1.0, n - p);
   double r1 = 0;

@@ -9,6 +9,8 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
+#include "frictiond/estimators/least_squares.h"
+
 namespace frictiond {
 
 namespace {
@@ -37,6 +39,32 @@ Eigen::Isometry3d DhTransform(const DhJoint& j, double q) {
   return t;
 }
 
+// Tip position x(q) and the position Jacobian *J = dx/dq
+// (3 x n: axis x (tip - origin) for revolute joints, the axis for
+// prismatic ones), in one pass over the chain.
+template <typename JacobianMatrix>
+Eigen::Vector3d CalcTipAndJacobian(const SerialArm& arm,
+                                   const Eigen::Ref<const Eigen::VectorXd>& q,
+                                   JacobianMatrix* J) {
+  const Eigen::Index n = q.size();
+  std::vector<Eigen::Vector3d> origin(static_cast<std::size_t>(n)),
+      axis(static_cast<std::size_t>(n));
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  for (Eigen::Index i = 0; i < n; ++i) {
+    origin[static_cast<std::size_t>(i)] = t.translation();
+    axis[static_cast<std::size_t>(i)] = t.linear().col(2);
+    t = t * DhTransform(arm.joints[static_cast<std::size_t>(i)], q[i]);
+  }
+  const Eigen::Vector3d tip = t.translation();
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    J->col(i) = arm.joints[k].type == JointType::kRevolute
+                    ? Eigen::Vector3d(axis[k].cross(tip - origin[k]))
+                    : axis[k];
+  }
+  return tip;
+}
+
 void CheckSize(const SerialArm& arm, Eigen::Index n) {
   if (n != static_cast<Eigen::Index>(arm.joints.size()))
     throw std::invalid_argument("q has " + std::to_string(n) +
@@ -56,6 +84,31 @@ double ChiSquareCdf(int r, double x) {
       return std::erf(std::sqrt(x / 2)) -
              std::sqrt(2 * x / kPi) * std::exp(-x / 2);
   }
+}
+
+// SolvePositionIk's solve with N parameters (N = q->size() or Dynamic):
+// residual r(q) = x(q) - target, J = dx/dq. Returns the iterations.
+template <int N>
+int RunPositionIk(const SerialArm& arm,
+                  const Eigen::Vector3d& target_mm,
+                  const LeastSquaresOptions& options,
+                  const Eigen::VectorXd& q_lo,
+                  const Eigen::VectorXd& q_hi,
+                  Eigen::VectorXd* q) {
+  using Vec = Eigen::Matrix<double, N, 1>;
+  auto residual = [&](const Vec& qq,
+                      Eigen::VectorXd* r,
+                      typename LeastSquaresWorkspace<N>::Jacobian* J) {
+    *r = CalcTipAndJacobian(arm, qq, J) - target_mm;
+    return r->allFinite() && J->allFinite();
+  };
+  Vec x = *q;
+  const Vec lo = q_lo, hi = q_hi;
+  LeastSquaresWorkspace<N> ws(3, q->size());
+  const LeastSquaresSummary<N> s =
+      SolveLeastSquares<N>(residual, &x, lo, hi, options, &ws);
+  *q = x;
+  return s.iterations;
 }
 
 }  // namespace
@@ -101,23 +154,8 @@ Eigen::Vector3d CalcEndEffectorPosition(
 Eigen::Matrix<double, 3, Eigen::Dynamic> CalcPositionJacobian(
     const SerialArm& arm, const Eigen::Ref<const Eigen::VectorXd>& q) {
   CheckSize(arm, q.size());
-  const Eigen::Index n = q.size();
-  std::vector<Eigen::Vector3d> origin(static_cast<std::size_t>(n)),
-      axis(static_cast<std::size_t>(n));
-  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
-  for (Eigen::Index i = 0; i < n; ++i) {
-    origin[static_cast<std::size_t>(i)] = t.translation();
-    axis[static_cast<std::size_t>(i)] = t.linear().col(2);
-    t = t * DhTransform(arm.joints[static_cast<std::size_t>(i)], q[i]);
-  }
-  const Eigen::Vector3d tip = t.translation();
-  Eigen::Matrix<double, 3, Eigen::Dynamic> J(3, n);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const auto k = static_cast<std::size_t>(i);
-    J.col(i) = arm.joints[k].type == JointType::kRevolute
-                   ? Eigen::Vector3d(axis[k].cross(tip - origin[k]))
-                   : axis[k];
-  }
+  Eigen::Matrix<double, 3, Eigen::Dynamic> J(3, q.size());
+  CalcTipAndJacobian(arm, q, &J);
   return J;
 }
 
@@ -187,29 +225,43 @@ IkResult SolvePositionIk(const SerialArm& arm,
     q_hi[i] = arm.joints[static_cast<std::size_t>(i)].q_max;
   }
   q = q.cwiseMax(q_lo).cwiseMin(q_hi);
-  Eigen::Vector3d err = target_mm - CalcEndEffectorPosition(arm, q);
-  double lambda2 = 1e-4;
+  // Damped least squares (Levenberg damping, least_squares.h): residual
+  // r(q) = x(q) - target (3 entries), J = dx/dq; the step
+  // (J^T J + mu I)^-1 J^T e = J^T (J J^T + mu I)^-1 e is the damped
+  // least-norm step, mu = lambda trace(J^T J) / n, so lambda = lambda2 n / 3
+  // with lambda2 the damping relative to trace(J J^T) / 3 (start 1e-4).
+  // Steps are accepted when |e| falls; the solve stops once |e| <=
+  // tolerance_mm, or when no damping finds descent.
+  const double n3 = static_cast<double>(n) / 3.0;
+  LeastSquaresOptions lm;
+  lm.damping = LeastSquaresDamping::kLevenberg;
+  lm.allow_underdetermined = true;
+  lm.initial_lambda = 1e-4 * n3;
+  lm.min_lambda = 1e-12 * n3;
+  lm.min_diagonal = 1e-12 / n3;
+  lm.max_step_tries = 20;  // from the lambda floor up to ~1e6 trace / 3
+  lm.cost_tolerance = 0.0;
+  lm.step_tolerance = 0.0;
+  lm.strict_decrease = true;
+  lm.compute_covariance = false;  // only q is wanted
+  lm.target_cost = tolerance_mm > 0 && std::isfinite(tolerance_mm)
+                       ? tolerance_mm * tolerance_mm
+                       : 0.0;
   int it = 0;
-  for (; it < max_iterations && err.norm() > tolerance_mm; ++it) {
-    const Eigen::Matrix<double, 3, Eigen::Dynamic> J =
-        CalcPositionJacobian(arm, q);
-    const Eigen::Matrix3d JJt = J * J.transpose();
-    const double scale = std::max(JJt.trace() / 3.0, 1e-12);
-    Eigen::Matrix3d M = JJt;
-    M.diagonal().array() += lambda2 * scale;
-    Eigen::VectorXd q_new =
-        (q + J.transpose() * M.ldlt().solve(err)).cwiseMax(q_lo).cwiseMin(q_hi);
-    const Eigen::Vector3d err_new =
-        target_mm - CalcEndEffectorPosition(arm, q_new);
-    if (err_new.norm() < err.norm()) {
-      q = q_new;
-      err = err_new;
-      lambda2 = std::max(lambda2 / 10, 1e-12);
+  const bool in_limits =
+      ((q.array() >= q_lo.array()) && (q.array() <= q_hi.array())).all();
+  if (max_iterations > 0 && in_limits) {
+    lm.max_iterations = max_iterations;
+    // Fixed sizes for the common 3- and 6-joint arms (no heap in the loop).
+    if (n == 3) {
+      it = RunPositionIk<3>(arm, target_mm, lm, q_lo, q_hi, &q);
+    } else if (n == 6) {
+      it = RunPositionIk<6>(arm, target_mm, lm, q_lo, q_hi, &q);
     } else {
-      lambda2 *= 10;
-      if (lambda2 > 1e6) break;
+      it = RunPositionIk<Eigen::Dynamic>(arm, target_mm, lm, q_lo, q_hi, &q);
     }
   }
+  const Eigen::Vector3d err = target_mm - CalcEndEffectorPosition(arm, q);
   out.q = q;
   out.error_mm = err.norm();
   out.iterations = it;

@@ -1,7 +1,9 @@
 // SolveLeastSquares (least_squares.h) against known truth: an exponential
 // decay with planted parameters away from zero, fitted from a far start by
 // LM and GN (fixed and dynamic sizes), the closed-form covariance of a
-// linear problem, the box, rank deficiency and option validation.
+// linear problem, the box, rank deficiency and option validation; the
+// extensions (split form with its own criterion, smoothed-L1 residuals,
+// Levenberg damping on an underdetermined problem).
 #include "frictiond/estimators/least_squares.h"
 
 #include <cmath>
@@ -223,6 +225,161 @@ TEST(SolveLeastSquares, RejectsBadOptionsNamingTheField) {
                                     LeastSquaresOptions(),
                                     &ws),
                std::invalid_argument);
+}
+
+// The split form with cost = |r|^2 is the functor form: same answer, and
+// the Jacobian is evaluated once at the start and once per accepted step.
+TEST(SolveLeastSquares, SplitFormWithSquaredNormCostMatchesFunctorForm) {
+  const Decay f(120, 0.01, 5);
+  const Eigen::Vector3d lo(-kInf, 0.0, -kInf), hi(kInf, kInf, kInf);
+  LeastSquaresWorkspace<3> ws(120);
+  Eigen::Vector3d x(0.3, 5.0, 2.0);
+  const auto s = SolveLeastSquares<3>(f, &x, lo, hi, {}, &ws);
+  ASSERT_EQ(s.status, LeastSquaresStatus::kConverged) << s.why;
+
+  int jacobians = 0;
+  Eigen::Matrix<double, Eigen::Dynamic, 3> J_scratch(120, 3);
+  Eigen::VectorXd r_scratch(120);
+  auto residual =
+      [&](const Eigen::Vector3d& at, Eigen::VectorXd* r, double* cost) {
+        if (!f(at, r, &J_scratch)) return false;
+        *cost = r->squaredNorm();
+        return true;
+      };
+  auto jacobian = [&](const Eigen::Vector3d& at,
+                      const Eigen::VectorXd&,
+                      Eigen::Matrix<double, Eigen::Dynamic, 3>* J) {
+    ++jacobians;
+    return f(at, &r_scratch, J);
+  };
+  LeastSquaresWorkspace<3> ws2(120);
+  Eigen::Vector3d y(0.3, 5.0, 2.0);
+  const auto t = SolveLeastSquares<3>(residual, jacobian, &y, lo, hi, {}, &ws2);
+  ASSERT_EQ(t.status, LeastSquaresStatus::kConverged) << t.why;
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(y[i], x[i], 1e-12) << i;
+  EXPECT_EQ(t.iterations, s.iterations);
+  EXPECT_NEAR(t.cost, s.cost, 1e-12 * (1 + s.cost));
+  EXPECT_GE(jacobians, 2);
+  EXPECT_LE(jacobians, t.iterations + 1);
+  for (int i = 0; i < 3; ++i)
+    EXPECT_NEAR(t.JtJ_inv(i, i), s.JtJ_inv(i, i), 1e-9 * s.JtJ_inv(i, i));
+}
+
+// Smoothed-L1 residuals e / sqrt(|e| + delta) judged by sum |e| (the form
+// the actuator fit uses): a line y = 1.5 - 0.8 t with 15% gross outliers
+// is recovered, where plain least squares is pulled away.
+TEST(SolveLeastSquares, SplitFormSmoothedL1ResistsOutliers) {
+  const int m = 200;
+  Eigen::VectorXd t(m), y(m);
+  std::mt19937 rng(11);
+  std::normal_distribution<double> noise(0.0, 0.01);
+  std::uniform_real_distribution<double> gross(2.0, 6.0);
+  for (int i = 0; i < m; ++i) {
+    t[i] = 0.01 * i;
+    y[i] = 1.5 - 0.8 * t[i] + noise(rng) + (i % 7 == 3 ? gross(rng) : 0.0);
+  }
+  const double delta = 1e-3;
+  auto errors = [&](const Eigen::Vector2d& x) -> Eigen::VectorXd {
+    return (x[0] + x[1] * t.array() - y.array()).matrix();
+  };
+  auto residual =
+      [&](const Eigen::Vector2d& x, Eigen::VectorXd* r, double* cost) {
+        const Eigen::VectorXd e = errors(x);
+        *r = (e.array() / (e.array().abs() + delta).sqrt()).matrix();
+        *cost = e.cwiseAbs().sum();
+        return r->allFinite();
+      };
+  auto jacobian = [&](const Eigen::Vector2d& x,
+                      const Eigen::VectorXd&,
+                      Eigen::Matrix<double, Eigen::Dynamic, 2>* J) {
+    // d/de [e (|e| + delta)^-1/2] = (|e| / 2 + delta) (|e| + delta)^-3/2.
+    const Eigen::ArrayXd a = errors(x).array().abs();
+    const Eigen::ArrayXd d = (0.5 * a + delta) / (a + delta).pow(1.5);
+    J->col(0) = d.matrix();
+    J->col(1) = (d * t.array()).matrix();
+    return J->allFinite();
+  };
+  const Eigen::Vector2d lo = Eigen::Vector2d::Constant(-kInf);
+  const Eigen::Vector2d hi = Eigen::Vector2d::Constant(kInf);
+  LeastSquaresOptions o;
+  o.max_iterations = 200;
+  o.cost_tolerance = 0.0;
+  o.strict_decrease = true;
+  LeastSquaresWorkspace<2> ws(m);
+  Eigen::Vector2d x(-2.0, 3.0);
+  const auto s = SolveLeastSquares<2>(residual, jacobian, &x, lo, hi, o, &ws);
+  ASSERT_NE(s.status, LeastSquaresStatus::kFailed) << s.why;
+  EXPECT_LT(s.cost, s.initial_cost);
+  EXPECT_NEAR(x[0], 1.5, 0.02) << x.transpose();
+  EXPECT_NEAR(x[1], -0.8, 0.04) << x.transpose();
+  // Plain least squares on the same data is biased by the outliers.
+  const Eigen::Vector2d ls =
+      (Eigen::MatrixXd(m, 2) << Eigen::VectorXd::Ones(m), t)
+          .finished()
+          .colPivHouseholderQr()
+          .solve(y);
+  EXPECT_GT(std::abs(ls[0] - 1.5), 0.2) << ls.transpose();
+}
+
+// Underdetermined, Levenberg damping: r = A x - b with A 2 x 4. From
+// x = 0 the damped least-norm steps stay in the row space of A, so the
+// solve ends at the minimum-norm solution A^T (A A^T)^-1 b, stopping on
+// target_cost.
+TEST(SolveLeastSquares, LevenbergDampingSolvesUnderdeterminedMinimumNorm) {
+  Eigen::Matrix<double, 2, 4> A;
+  A << 1.0, 2.0, -1.0, 0.5,  //
+      0.0, 1.0, 3.0, -2.0;
+  const Eigen::Vector2d b(4.0, -3.0);
+  auto f = [&](const Eigen::Vector4d& x,
+               Eigen::VectorXd* r,
+               Eigen::Matrix<double, Eigen::Dynamic, 4>* J) {
+    *r = A * x - b;
+    *J = A;
+    return true;
+  };
+  const Eigen::Vector4d lo = Eigen::Vector4d::Constant(-kInf);
+  const Eigen::Vector4d hi = Eigen::Vector4d::Constant(kInf);
+  LeastSquaresWorkspace<4> ws(2);
+  Eigen::Vector4d x = Eigen::Vector4d::Zero();
+  LeastSquaresOptions o;
+  EXPECT_EQ(SolveLeastSquares<4>(f, &x, lo, hi, o, &ws).status,
+            LeastSquaresStatus::kNotEnoughData);
+  o.damping = LeastSquaresDamping::kLevenberg;
+  o.allow_underdetermined = true;
+  o.target_cost = 1e-20;
+  o.cost_tolerance = 0.0;
+  o.step_tolerance = 0.0;
+  const auto s = SolveLeastSquares<4>(f, &x, lo, hi, o, &ws);
+  ASSERT_EQ(s.status, LeastSquaresStatus::kConverged) << s.why;
+  EXPECT_LE(s.cost, 1e-20);
+  EXPECT_EQ(s.rcond, 0.0);
+  const Eigen::Vector4d min_norm =
+      A.transpose() * (A * A.transpose()).ldlt().solve(b);
+  for (int i = 0; i < 4; ++i) EXPECT_NEAR(x[i], min_norm[i], 1e-8) << i;
+  // Without the final covariance: same answer, rcond NaN.
+  o.compute_covariance = false;
+  Eigen::Vector4d z = Eigen::Vector4d::Zero();
+  const auto t = SolveLeastSquares<4>(f, &z, lo, hi, o, &ws);
+  ASSERT_EQ(t.status, LeastSquaresStatus::kConverged) << t.why;
+  EXPECT_TRUE(std::isnan(t.rcond));
+  for (int i = 0; i < 4; ++i) EXPECT_EQ(z[i], x[i]) << i;
+}
+
+TEST(SolveLeastSquares, RejectsBadExtensionOptionsNamingTheField) {
+  std::string why;
+  LeastSquaresOptions o;
+  o.min_lambda = 1.0;  // > initial_lambda
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("min_lambda"), std::string::npos) << why;
+  o = LeastSquaresOptions();
+  o.target_cost = -1.0;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("target_cost"), std::string::npos) << why;
+  o = LeastSquaresOptions();
+  o.allow_underdetermined = true;
+  o.method = LeastSquaresMethod::kGaussNewton;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("allow_underdetermined"), std::string::npos) << why;
 }
 
 }  // namespace
