@@ -17,6 +17,7 @@
 // is above the nominal 5 %; with 5 x 20 = 100 runs, 10 or more alarms). A fixed
 // seed list keeps the test deterministic. The printed markdown table is what
 // the docs show.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -64,8 +65,26 @@ double BinomialCdf(int k, int n, double p) {
   return std::min(1.0, sum);
 }
 
+/// The findings; with FRICTIOND_DIAGNOSIS_DEBUG set also the 4 best
+/// candidate tests of each step of the selection on all strokes (inner
+/// figures), to see what a miss would have needed.
 std::string Describe(const DiagnosisResult& r) {
   std::string s;
+  if (std::getenv("FRICTIOND_DIAGNOSIS_DEBUG")) {
+    std::vector<CandidateTest> t = r.tests;
+    std::sort(t.begin(), t.end(), [](const auto& a, const auto& b) {
+      return a.step != b.step ? a.step < b.step : a.gain_pct > b.gain_pct;
+    });
+    int shown = 0, step = -1;
+    for (const auto& c : t) {
+      if (c.step != step) step = c.step, shown = 0;
+      if (shown++ < 4)
+        s += "\n    step " + std::to_string(c.step) + " " + c.cause + " " +
+             c.expansion + " gain " + std::to_string(c.gain_pct) + " p " +
+             std::to_string(c.p_raw) + (c.significant ? " *" : "");
+    }
+    s += "\n   ";
+  }
   for (const Finding& f : r.findings)
     s += " [" + f.cause + " " + f.kind + " " + f.expansion + "]";
   return s.empty() ? " (none)" : s;
