@@ -614,8 +614,14 @@ DiagnosisResult RunDiagnosis(const StrokeData& data,
     }
   }
 
-  // Outer test of each finding (in selection order), Holm over the
-  // findings; refit the chain on the survivors until stable.
+  // Outer test of the findings as a fixed sequence: in selection order,
+  // each at level alpha, stopping at the first one that fails (its p-value
+  // or its gain); the adjusted p-value of finding k is the largest raw
+  // p-value of findings 1..k. (Holm over every proposal, used before,
+  // let a weak late proposal double the threshold of a strong first one:
+  // see docs/diagnosis.md, "Outer test".) The chain is refitted on the
+  // survivors; model i depends only on findings 1..i, so one more pass
+  // settles it.
   std::vector<int> kept;
   for (std::size_t i = 0; i < sel.chosen.size(); ++i)
     kept.push_back(static_cast<int>(i));
@@ -633,22 +639,18 @@ DiagnosisResult RunDiagnosis(const StrokeData& data,
       result.why = "an outer-fold model could not be fitted";
       return result;
     }
-    // Holm with the number of findings the selection proposed (a finding
-    // dropped in an earlier pass still counts as tested).
-    std::vector<double> p(m_tested, 1.0);
-    for (std::size_t k = 0; k < kept.size(); ++k)
-      p[k] =
-          ChainTest(outer, chain.stroke_sae[k], chain.stroke_sae[k + 1]).second;
-    const std::vector<double> adj = HolmAdjust(p);
     std::vector<int> next;
     p_holm.clear();
+    double p_seq = 0.0;
     for (std::size_t k = 0; k < kept.size(); ++k) {
+      const double p =
+          ChainTest(outer, chain.stroke_sae[k], chain.stroke_sae[k + 1]).second;
+      p_seq = std::max(p_seq, p);
       const double gain =
           100.0 * (chain.sae[k] - chain.sae[k + 1]) / chain.sae[0];
-      if (adj[k] < options.alpha && gain >= options.min_gain_pct) {
-        next.push_back(kept[k]);
-        p_holm.push_back(adj[k]);
-      }
+      if (!(p_seq < options.alpha) || gain < options.min_gain_pct) break;
+      next.push_back(kept[k]);
+      p_holm.push_back(p_seq);
     }
     if (next == kept) break;
     kept = next;
