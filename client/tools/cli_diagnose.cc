@@ -102,8 +102,8 @@ void PrintSummary(const DiagnosisResult& r,
   }
   if (r.findings.empty()) {
     std::cout << "findings: none significant on the outer folds (alpha "
-              << Fmt(o.alpha) << " after Holm, min gain " << Fmt(o.min_gain_pct)
-              << " %)\n";
+              << Fmt(o.alpha) << " as a fixed sequence, min gain "
+              << Fmt(o.min_gain_pct) << " %)\n";
   } else {
     std::cout << "findings:\n";
     for (std::size_t i = 0; i < r.findings.size(); ++i) {
@@ -437,7 +437,8 @@ void RegisterDiagnoseCommand(CLI::App& app, Globals& g) {
       ->capture_default_str();
   cmd->add_option("--alpha",
                   args->alpha,
-                  "error rate of the outer tests (Holm over the findings)")
+                  "error rate of the outer tests (the findings as a fixed "
+                  "sequence; Holm over the spread candidates)")
       ->capture_default_str();
   cmd->add_option("--min-gain-pct",
                   args->min_gain_pct,

@@ -259,6 +259,20 @@ std::vector<Expansion> BuildExpansions(
                        "onset(" + Num(tau, 3) + " s)",
                        std::move(terms),
                        {}});
+        // A transient growing concavely with the dwell (x^0.5): contact
+        // ageing grows sub-linearly with the time at rest (static friction
+        // ~ log of the dwell), and a concave weight does not let the few
+        // strokes after the longest rests dominate the fit (a linear weight
+        // over- or under-shoots them when the measured dwell or the
+        // labelled onset is off for those strokes).
+        if (!constant) {
+          out.push_back({name,
+                         "regime",
+                         "onset(" + Num(tau, 3) + " s, sqrt)",
+                         {Canonical(TermKind::kOnsetDecay, name, tau, 0.0),
+                          Canonical(TermKind::kOnsetDecay, name, tau, 0.5)},
+                         {}});
+        }
       }
     }
   }
@@ -398,11 +412,14 @@ std::string DescribeEffect(const Expansion& e,
     }
     const double d_lo = SortedQuantile(sorted, 0.1),
                  d_hi = SortedQuantile(sorted, 0.9);
-    const double j_lo = c0 + c1 * d_lo, j_hi = c0 + c1 * d_hi;
-    return "slip-onset transient growing with dwell: at onset mu changes by " +
-           Num(j_lo, 2) + " after " + Num(d_lo, 2) + " s of dwell and by " +
-           Num(j_hi, 2) + " after " + Num(d_hi, 2) +
-           " s, decaying with time constant " + Num(tau) + " s";
+    const double power = e.terms[1].b;
+    const double j_lo = c0 + c1 * std::pow(std::max(0.0, d_lo), power),
+                 j_hi = c0 + c1 * std::pow(std::max(0.0, d_hi), power);
+    return std::string("slip-onset transient growing with ") +
+           (power == 1.0 ? "dwell" : "the square root of dwell") +
+           ": at onset mu changes by " + Num(j_lo, 2) + " after " +
+           Num(d_lo, 2) + " s of dwell and by " + Num(j_hi, 2) + " after " +
+           Num(d_hi, 2) + " s, decaying with time constant " + Num(tau) + " s";
   }
   // Quadratic, log, hinge (form or covariate): the model's whole dependence
   // on x (its linear term included) at the 5th, 50th and 95th percentiles.

@@ -17,6 +17,7 @@
 // is above the nominal 5 %; with 5 x 20 = 100 runs, 10 or more alarms). A fixed
 // seed list keeps the test deterministic. The printed markdown table is what
 // the docs show.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -44,6 +45,15 @@ int Seeds() {
   return env ? std::max(1, std::atoi(env)) : 20;
 }
 
+/// FRICTIOND_DIAGNOSIS_KINDS=a,b runs only those kinds (while iterating;
+/// unset = every kind, as in CI).
+bool Wanted(const std::string& kind) {
+  const char* env = std::getenv("FRICTIOND_DIAGNOSIS_KINDS");
+  if (!env || !*env) return true;
+  const std::string list = std::string(",") + env + ",";
+  return list.find("," + kind + ",") != std::string::npos;
+}
+
 /// P(X <= k) for X ~ Binomial(n, p).
 double BinomialCdf(int k, int n, double p) {
   double sum = 0.0;
@@ -55,10 +65,31 @@ double BinomialCdf(int k, int n, double p) {
   return std::min(1.0, sum);
 }
 
+/// The findings; with FRICTIOND_DIAGNOSIS_DEBUG set also the 4 best
+/// candidate tests of each step of the selection on all strokes (inner
+/// figures), to see what a miss would have needed.
 std::string Describe(const DiagnosisResult& r) {
   std::string s;
-  for (const Finding& f : r.findings)
-    s += " [" + f.cause + " " + f.kind + " " + f.expansion + "]";
+  if (std::getenv("FRICTIOND_DIAGNOSIS_DEBUG")) {
+    std::vector<CandidateTest> t = r.tests;
+    std::sort(t.begin(), t.end(), [](const auto& a, const auto& b) {
+      return a.step != b.step ? a.step < b.step : a.gain_pct > b.gain_pct;
+    });
+    int shown = 0, step = -1;
+    for (const auto& c : t) {
+      if (c.step != step) step = c.step, shown = 0;
+      if (shown++ < 4)
+        s += "\n    step " + std::to_string(c.step) + " " + c.cause + " " +
+             c.expansion + " gain " + std::to_string(c.gain_pct) + " p " +
+             std::to_string(c.p_raw) + (c.significant ? " *" : "");
+    }
+    s += "\n   ";
+  }
+  for (const Finding& f : r.findings) {
+    s += " [" + f.cause + " " + f.kind + " " + f.expansion;
+    for (const Alternative& a : f.alternatives) s += " | or " + a.cause;
+    s += "]";
+  }
   return s.empty() ? " (none)" : s;
 }
 
@@ -104,9 +135,8 @@ void PrintTable(const std::vector<Row>& rows, const std::string& title) {
 /// (docs/diagnosis.md, "Where it fails"); those kinds are held to the rate
 /// measured over 50 seeds, so that a regression still fails.
 double Goal(const std::string& kind) {
-  if (kind == "spread") return 0.7;           // 50 seeds: 78 %
-  if (kind == "categorical") return 0.7;      // 50 seeds: 74 %
-  if (kind == "onset_transient") return 0.4;  // 50 seeds: 46 %
+  if (kind == "categorical") return 0.75;     // 50 seeds: 78 %
+  if (kind == "onset_transient") return 0.6;  // 50 seeds: 64 %
   return 0.9;
 }
 
@@ -143,6 +173,7 @@ TEST(DiagnosisRatesTest, WiderFamiliesNamedFirst) {
                         WideKind::kCategorical}) {
     Row row;
     row.kind = testing::ToString(kind);
+    if (!Wanted(row.kind)) continue;
     for (int seed = 1; seed <= seeds; ++seed) {
       const testing::WideCase c = GenerateWideCase(kind, seed, kStrokes);
       const DiagnosisOptions o = Options();
@@ -175,6 +206,7 @@ TEST(DiagnosisRatesTest, OriginalEffectsNamedFirst) {
                                PlantedEffect::kPositionPatch}) {
     Row row;
     row.kind = testing::ToString(effect);
+    if (!Wanted(row.kind)) continue;
     const std::string cause = testing::PlantedCause(effect);
     for (int seed = 1; seed <= seeds; ++seed) {
       PlantedSpec spec;
@@ -222,6 +254,7 @@ TEST(DiagnosisRatesTest, NullFalseAlarms) {
                         WideKind::kNullManyColumns}) {
     Row row;
     row.kind = testing::ToString(kind);
+    if (!Wanted(row.kind)) continue;
     for (int seed = 1; seed <= seeds; ++seed) {
       const testing::WideCase c = GenerateWideCase(kind, seed, kStrokes);
       const DiagnosisOptions o = Options();
@@ -232,7 +265,7 @@ TEST(DiagnosisRatesTest, NullFalseAlarms) {
     }
     rows.push_back(row);
   }
-  {
+  if (Wanted("null_eq1_6_columns")) {
     Row row;
     row.kind = "null_eq1_6_columns";
     for (int seed = 1; seed <= seeds; ++seed) {
@@ -250,6 +283,7 @@ TEST(DiagnosisRatesTest, NullFalseAlarms) {
     rows.push_back(row);
   }
   PrintTable(rows, "null (silent = no finding)");
+  if (runs == 0) return;
   const double p = 1.0 - BinomialCdf(alarms - 1, runs, 0.05);
   std::printf("[ null ] false alarms %d/%d runs (%.1f %%)\n",
               alarms,

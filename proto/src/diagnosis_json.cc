@@ -127,8 +127,10 @@ nlohmann::json DiagnosisToJson(const DiagnosisResult& r,
        "one-sided paired t-test over strokes of outer held-out "
        "absolute-error differences (spread: log-likelihood differences)"},
       {"correction",
-       "Holm over the findings the selection proposed (and over all spread "
-       "candidates); inside the selection raw p < selection_alpha"},
+       "fixed sequence over the findings the selection proposed, in "
+       "selection order (adjusted p = running maximum of the raw p); Holm "
+       "over all spread candidates; inside the selection raw p < "
+       "selection_alpha"},
       {"alpha", options.alpha},
       {"selection_alpha", options.selection_alpha},
       {"min_gain_pct", options.min_gain_pct},

@@ -32,16 +32,20 @@
 ///   d_s = (held-out absolute error of the model without - with the
 ///   finding) summed over stroke s (normalised by the mean samples per
 ///   stroke, so mean d_s is the cv_mae gain); one stroke = one observation;
-///   Holm over the findings the selection proposed, plus a minimum
-///   practical gain (min_gain_pct of the baseline cv_mae); inside the
-///   selection a candidate needs raw p < selection_alpha;
+///   the findings the selection proposed are tested as a fixed sequence
+///   (in selection order, each at alpha, stopping at the first failure;
+///   adjusted p = largest raw p so far), plus a minimum practical gain
+///   (min_gain_pct of the baseline cv_mae); inside the selection a
+///   candidate needs raw p < selection_alpha;
 /// - greedy forward selection over candidates x expansions (linear,
 ///   splines, quadratic/log/hinge forms, periodic, bins/levels, windows,
 ///   onset transients, pairwise interactions "x*y"), largest significant
 ///   gain first;
 /// - spread: a log-linear scale model of eps in each input/column against a
-///   constant scale, held-out Gaussian log-likelihood per stroke, Holm over
-///   the columns (kind "spread", EpsScaleModel in the extended model);
+///   constant scale, fitted and scored on the within-stroke first
+///   differences of the residuals (offsets and slow wander cancel),
+///   held-out Gaussian log-likelihood per stroke, Holm over the columns
+///   (kind "spread", EpsScaleModel in the extended model);
 /// - alternatives: candidates whose gain lies in the finding's 95 %
 ///   confidence interval (the data cannot tell them apart).
 ///
@@ -96,9 +100,8 @@ struct DiagnosisOptions {
   bool shuffle_folds = false;
   /// Seed of the shuffled stroke-to-fold assignment (the only randomness).
   std::uint64_t seed = 0;
-  /// Error rate: Holm over all candidates x expansions of a greedy step
-  /// inside the selection, and Holm over the reported findings' outer
-  /// p-values (and over all spread candidates).
+  /// Error rate of the outer test: the reported findings' outer p-values
+  /// as a fixed sequence, and Holm over all spread candidates.
   double alpha = 0.05;
   /// Inside the selection (inner folds) a candidate may join the model when
   /// its raw one-sided p-value is below this (no correction there: every
@@ -193,10 +196,12 @@ struct Finding {
                                    ///< "interaction" or "spread"
   std::string expansion;           ///< which expansion won
   std::vector<std::string> terms;  ///< term names it added
-  double p_value = 1.0;            ///< Holm-adjusted p-value in its step
-  double cv_mae_gain_pct = 0.0;    ///< its step's held-out MAE gain, % of
-                                   ///< baseline cv_mae (gains add up)
-  double cv_mae = 0.0;             ///< held-out MAE after adding it
+  double p_value = 1.0;  ///< outer p-value, fixed-sequence adjusted (the
+                         ///< largest raw p of this and earlier findings;
+                         ///< spread: Holm over the spread candidates)
+  double cv_mae_gain_pct = 0.0;  ///< its step's held-out MAE gain, % of
+                                 ///< baseline cv_mae (gains add up)
+  double cv_mae = 0.0;           ///< held-out MAE after adding it
   double log_likelihood_gain =
       0.0;  ///< held-out Gaussian log-likelihood gain of the step [nats/sample]
   std::string
