@@ -105,12 +105,65 @@ def _ols_stats(X, y):
     return beta, resid, np.sqrt(np.clip(np.diag(cov), 0, None))
 
 
+def _hull_area(pts):
+    if len(pts) < 3:
+        return 0.0
+    try:
+        return ConvexHull(pts).volume
+    except Exception:  # degenerate (collinear) hull
+        return 0.0
+
+
+def _eps_time(resid, episode, dt):
+    """eps's AR(1) time model by lag-1/lag-2 moments within episodes
+    (estimators/src/eps_time.cc)."""
+    z = (resid - resid.mean()) / resid.std()
+    same1 = episode[1:] == episode[:-1]
+    same2 = same1[1:] & same1[:-1]
+    g0 = np.mean(z * z)
+    g1 = np.mean((z[:-1] * z[1:])[same1])
+    g2 = np.mean((z[:-2] * z[2:])[same2])
+    phi = np.clip((g1 - g2) / (g0 - g1), 0.0, 0.98) if g0 - g1 > 1e-9 else 0.0
+    return phi, -dt / math.log(phi) if phi > 0 else 0.0
+
+
+def _lugre_strokes(t, v, ft, fn, dt):
+    """The LuGre stroke recognition (lugre_stroke_identification.cc): speed
+    median-filtered over 0.05 s, rests at 5 % of the peak split strokes,
+    each stroke's 95th percentile of |dv/dt| (least-squares slope over
+    +-0.05 s) classifies it; mu signed by the motion."""
+    k = int(np.clip(round(0.05 / dt), 1, 51)) | 1
+    vf = median_filter(v, size=k, mode="nearest")
+    moving = vf > 0.05 * vf.max()
+    mu = ft / fn
+    edges = np.diff(np.concatenate(([0], moving.astype(np.int8), [0])))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    h = max(2, int(round(0.05 / dt)))
+    kinds = []
+    for s, e in zip(starts, ends):
+        if e - s < 20:
+            continue
+        tt, vv = t[s:e] - t[s], v[s:e]
+        w = np.ones(2 * h + 1)
+        m = np.convolve(np.ones_like(tt), w, "same")
+        st, sv = np.convolve(tt, w, "same"), np.convolve(vv, w, "same")
+        stt, stv = np.convolve(tt * tt, w, "same"), np.convolve(tt * vv, w, "same")
+        den = m * stt - st * st
+        slope = np.where(den > 0, (m * stv - st * sv) / np.where(den > 0, den, 1), 0)
+        a = np.quantile(np.abs(slope), 0.95)
+        kinds.append(0 if a <= 3.0 else (2 if a >= 5.0 else 1))
+        _ = np.sign(vv) * mu[s:e]
+    return kinds
+
+
 def identify(csv, peak, floor, window_s, repeats):
     """Full identification of one material as frictiond does it: median
     filter + episode rule (II-C), stroke segmentation, eq. (1) and the
     Fn-only model with SEs and eps quantiles, the sigmoid likelihood and the
     conditional one of eq. (2) (0.2 N steps, 0.6 N windows), and the convex
-    hull of the slipping (Fn, v) samples against the plan's reference span."""
+    hull of the slipping (Fn, v) samples against the plan's reference span;
+    then eps's AR(1) time model, the material hull with each stroke's share
+    and the LuGre stroke recognition, as IdentifyMaterial does since."""
     d = np.genfromtxt(csv, delimiter=",", names=True)
     t, fn, ft, v = d["t_s"], d["fn_n"], d["ft_n"], d["v_mm_s"]
     # frictiond's EpsQuantileLevels(): the stored eps distribution.
@@ -160,12 +213,27 @@ def identify(csv, peak, floor, window_s, repeats):
         except Exception:  # degenerate (collinear) hull
             area = 0.0
         span_pct = 100.0 * area / ((4.5 - 0.5) * (80.0 - 15.0))
+        # Steps the daemon's identification gained since this reference was
+        # written (issues 18, 19, 17): eps's AR(1) time model, the hull of
+        # the material's slipping samples with each stroke's share of it
+        # (paper 000 III-C-2), and the LuGre stroke recognition.
+        sl_idx = np.flatnonzero(mask)
+        episode = np.cumsum(np.concatenate(([0], np.diff(sl_idx) != 1)))
+        phi, corr_s = _eps_time(resid, episode, dt)
+        raw = np.column_stack([fn[mask], v[mask]])
+        material_area = _hull_area(raw)
+        st = stroke[mask]
+        bounds = np.flatnonzero(np.diff(st)) + 1
+        shares = [100.0 * _hull_area(p) / material_area if material_area > 0 else 0.0
+                  for p in np.split(raw, bounds)]
+        kinds = _lugre_strokes(t, v, ft, fn, dt)
         times.append(time.perf_counter() - t0)
         out = {"beta": [float(b) for b in beta], "strokes": int(stroke[-1]) + 1,
                "slip": int(mask.sum()), "c1": float(c1), "c2": float(c2),
                "windows": len(windows), "span_pct": span_pct,
                "eps_q50": float(q[53]), "eps_fn_q50": float(q_fn[53]), "se": [float(x) for x in se],
-               "beta_fn": [float(b) for b in beta_fn]}
+               "beta_fn": [float(b) for b in beta_fn], "eps_phi": float(phi),
+               "stroke_hulls": len(shares), "lugre_strokes": len(kinds)}
     out["ms"] = 1e3 * float(np.median(times))
     print(json.dumps(out))
 
