@@ -33,43 +33,16 @@
 #include "frictiond/server/library.h"
 #include "frictiond/testing/stroke_simulator.h"
 
+#include "pinch_scene.h"
+
 namespace frictiond::mujoco {
 namespace {
 
-// The scene of drop_rate_test.cc: two soft fingertips (x slides, motors =
-// grip force) pinch a 0.4 kg box on a vertical and a horizontal (y) slide;
-// elliptic cone, impratio 10 and noslip iterations so friction, not
-// soft-contact creep, decides slip.
-constexpr const char* kScene = R"(
-<mujoco model="pinch">
-  <option timestep="0.002" integrator="Euler" cone="elliptic" impratio="10"
-          noslip_iterations="30" gravity="0 0 -9.81"/>
-  <worldbody>
-    <body name="finger_a" pos="-0.03 0 0">
-      <joint name="ax" type="slide" axis="1 0 0" damping="2"/>
-      <geom name="tip_a" type="sphere" size="0.01" mass="0.05"
-            solref="0.01 1" friction="1 0.005 0.0001"/>
-    </body>
-    <body name="finger_b" pos="0.03 0 0">
-      <joint name="bx" type="slide" axis="-1 0 0" damping="2"/>
-      <geom name="tip_b" type="sphere" size="0.01" mass="0.05"
-            solref="0.01 1" friction="1 0.005 0.0001"/>
-    </body>
-    <body name="box" pos="0 0 0">
-      <joint name="bz" type="slide" axis="0 0 1"/>
-      <joint name="by" type="slide" axis="0 1 0"/>
-      <geom name="box" type="box" size="0.02 0.02 0.02" mass="0.4"/>
-    </body>
-  </worldbody>
-  <actuator>
-    <motor name="press_a" joint="ax" gear="1"/>
-    <motor name="press_b" joint="bx" gear="1"/>
-  </actuator>
-</mujoco>)";
+// The scene of drop_rate_test.cc (pinch_scene.h): two soft fingertips (x
+// slides, motors = grip force) pinch a 0.4 kg box on a vertical and a
+// horizontal (y) slide; elliptic cone, impratio 10 and noslip iterations so
+// friction, not soft-contact creep, decides slip.
 
-constexpr double kSettleS = 0.2;   // gravity off, grip force established
-constexpr double kHoldS = 0.5;     // hold time under load
-constexpr double kDropM = 0.005;   // box lower than this: dropped
 constexpr double kSlipM = 20e-6;   // box lower than this: slipped
 constexpr double kRateHz = 100.0;  // stroke sampling (eps_time.dt_s)
 
@@ -172,7 +145,7 @@ struct Scene {
   Scene() {
     const std::string path = ::testing::TempDir() + "/pinch_e2e_" +
                              std::to_string(::getpid()) + ".xml";
-    std::ofstream(path) << kScene;
+    std::ofstream(path) << kPinchScene;
     char err[1000] = "";
     m = mj_loadXML(path.c_str(), nullptr, err, sizeof(err));
     std::remove(path.c_str());

@@ -15,35 +15,10 @@
 
 #include "frictiond/mujoco/friction_adapter.h"
 
+#include "pinch_scene.h"
+
 namespace frictiond::mujoco {
 namespace {
-
-constexpr const char* kScene = R"(
-<mujoco model="pinch">
-  <option timestep="0.002" integrator="Euler" cone="elliptic" impratio="10"
-          noslip_iterations="30" gravity="0 0 -9.81"/>
-  <worldbody>
-    <body name="finger_a" pos="-0.03 0 0">
-      <joint name="ax" type="slide" axis="1 0 0" damping="2"/>
-      <geom name="tip_a" type="sphere" size="0.01" mass="0.05"
-            solref="0.01 1" friction="1 0.005 0.0001"/>
-    </body>
-    <body name="finger_b" pos="0.03 0 0">
-      <joint name="bx" type="slide" axis="-1 0 0" damping="2"/>
-      <geom name="tip_b" type="sphere" size="0.01" mass="0.05"
-            solref="0.01 1" friction="1 0.005 0.0001"/>
-    </body>
-    <body name="box" pos="0 0 0">
-      <joint name="bz" type="slide" axis="0 0 1"/>
-      <joint name="by" type="slide" axis="0 1 0"/>
-      <geom name="box" type="box" size="0.02 0.02 0.02" mass="0.4"/>
-    </body>
-  </worldbody>
-  <actuator>
-    <motor name="press_a" joint="ax" gear="1"/>
-    <motor name="press_b" joint="bx" gear="1"/>
-  </actuator>
-</mujoco>)";
 
 // mu_s 0.9, mu_c 0.6, v0 10 mm/s, sigma2 0, sigma0 50 /mm, sigma1 0.001 s/mm.
 LuGreTheta Theta() { return MakeLuGreTheta(0.9, 0.6, 10.0, 0.0, 50.0, 0.001); }
@@ -52,7 +27,7 @@ struct Pinch {
   Pinch() {
     const std::string path = ::testing::TempDir() + "/lugre_pinch_" +
                              std::to_string(::getpid()) + ".xml";
-    std::ofstream(path) << kScene;
+    std::ofstream(path) << kPinchScene;
     char err[1000] = "";
     m = mj_loadXML(path.c_str(), nullptr, err, sizeof(err));
     std::remove(path.c_str());
