@@ -1,5 +1,6 @@
-// Model-query routes (paper 000) end to end (docs/paper000.md): the real `frictiond`
-// over loopback HTTP, the client library calls and the `friction` CLI.
+// Model-query routes (paper 000) end to end (docs/paper000.md): the real
+// `frictiond` over loopback HTTP, the client library calls and the `friction`
+// CLI.
 #include <cmath>
 #include <cstdlib>
 #include <fstream>

@@ -1,5 +1,5 @@
-// Model-query subcommands of `friction` (paper 000) that ask the daemon: controlled
-// sliding (eq. 3) and velocity prediction (eq. 4).
+// Model-query subcommands of `friction` (paper 000) that ask the daemon:
+// controlled sliding (eq. 3) and velocity prediction (eq. 4).
 #include <iostream>
 #include <string>
 #include <utility>
