@@ -348,6 +348,15 @@ RobotSimResult RunRobotSimulation(const RobotSimOptions& o) {
   const double deadline = NowS() + o.timeout_s;
   bool got_reply = false;
   double last_query_s = NowS();
+  // Whether the daemon said anything about the current stroke since it was
+  // streamed, and when the stream (or the last probe) went out: a robot
+  // that hears nothing at all (every chunk lost, e.g. a burst of other
+  // traffic overflowing the receive queue) sends the last chunk again; it
+  // carries the total, so the daemon then asks for every missing seq
+  // (docs/lcm.md "Lost chunks").
+  bool heard_stroke = true;
+  double probe_s = 0.0;
+  constexpr double kSilenceS = 2.0;
   while (NowS() < deadline) {
     lcm.handleTimeout(20);
     if (!got_reply && NowS() - last_query_s > 1.0) {
@@ -457,8 +466,9 @@ RobotSimResult RunRobotSimulation(const RobotSimOptions& o) {
       for (int k = 0; k < total; ++k) order[k] = k;
       if (o.reorder) std::shuffle(order.begin(), order.end(), rng);
       held_back = o.hold_back && total > 2 ? 1 : -1;
+      const bool lose = o.lose_first_stream && res.strokes_sent == 0;
       for (int k : order) {
-        if (k == held_back) continue;
+        if (k == held_back || lose) continue;
         send(k, false);
         if (o.duplicate && k % 3 == 0) send(k, true);
         // Pace the stream a little (a robot streams as it samples): udpm
@@ -467,10 +477,19 @@ RobotSimResult RunRobotSimulation(const RobotSimOptions& o) {
         std::this_thread::sleep_for(std::chrono::microseconds(300));
       }
       ++res.strokes_sent;
+      heard_stroke = false;
+      probe_s = NowS();
+    }
+    if (!heard_stroke && !chunks.empty() && NowS() - probe_s > kSilenceS) {
+      send(static_cast<int>(chunks.size()) - 1, false);
+      probe_s = NowS();
+      log("no word on stroke " + std::to_string(current_stroke) +
+          ": last chunk sent again");
     }
     for (; seen_progress < inbox.progress.size(); ++seen_progress) {
       const coverage_progress_v1& p = inbox.progress[seen_progress];
       if (p.job_id != res.job_id) continue;
+      if (p.stroke == current_stroke) heard_stroke = true;
       if (p.span_pct >= 0) res.last_span_pct = p.span_pct;
       if (p.state != "stroking" || p.n_missing > 0 || p.span_pct >= 0)
         log("progress " + p.state + " stroke " + std::to_string(p.stroke) +

@@ -51,6 +51,10 @@ struct RobotSimOptions {
   bool duplicate = false;  ///< send every third chunk twice
   bool reorder = false;    ///< send chunks in a shuffled order
   bool hold_back = false;  ///< withhold chunk 1 until a resend request names it
+  /// The first stroke's whole stream is lost (nothing is sent): only the
+  /// robot's silence probe (the last chunk again after 2 s) and the
+  /// daemon's resend requests bring it through.
+  bool lose_first_stream = false;
   /// The first stroke sweeps only the lowest quarter of the requested Fn
   /// range (too little span: the daemon must ask for a follow-up).
   bool narrow_first_stroke = false;
