@@ -79,8 +79,13 @@ struct Ingestor::Pair {
   // Guarded by mu:
   bool loaded = false;
   SlipLabelOptions labelling;
+  // Every readable stored upload of the pair, by stroke id: its sample
+  // count. Kept when the cache sheds the parsed data, so that a refit
+  // loads only the uploads SelectFitUploads chooses (not the whole pair).
+  std::map<std::int64_t, std::size_t> sizes;
+  std::size_t samples_stored = 0;              // sum of sizes
   std::map<std::int64_t, StrokeData> uploads;  // prepared, by stroke id
-  std::size_t samples = 0;
+  std::size_t samples = 0;                     // of `uploads` (cached)
   std::int64_t known_through = 0;  // every stroke id of the pair <= it is known
 };
 
@@ -110,12 +115,36 @@ Ingestor::PairLock Ingestor::Lock(const std::string& material,
   return PairLock(std::move(pair), material, fingertip);
 }
 
-void Ingestor::Drop(Pair& pair) {
+void Ingestor::Shed(Pair& pair) {
   cached_samples_ -= pair.samples;
   pair.uploads.clear();
   pair.samples = 0;
+}
+
+void Ingestor::Drop(Pair& pair) {
+  Shed(pair);
+  pair.sizes.clear();
+  pair.samples_stored = 0;
   pair.known_through = 0;
   pair.loaded = false;
+}
+
+bool Ingestor::Cache(Pair& pair, std::int64_t id, const std::string& csv) {
+  const StrokeCsvOptions csv_options{options_.max_samples_per_upload, 64};
+  StrokeData d;
+  try {
+    d = ParseStrokeCsv(csv, csv_options);
+  } catch (const StrokeCsvError&) {
+    return false;  // validated when stored; unreadable now: skip it
+  }
+  PrepareUpload(&d, pair.labelling);
+  const std::size_t n = d.size();
+  if (pair.sizes.emplace(id, n).second) pair.samples_stored += n;
+  if (pair.uploads.emplace(id, std::move(d)).second) {
+    pair.samples += n;
+    cached_samples_ += n;
+  }
+  return true;
 }
 
 void Ingestor::Load(Pair& pair,
@@ -123,22 +152,12 @@ void Ingestor::Load(Pair& pair,
                     const std::string& fingertip,
                     const SlipLabelOptions& labelling) {
   Drop(pair);
-  const StrokeCsvOptions csv_options{options_.max_samples_per_upload, 64};
+  pair.labelling = labelling;
   for (StrokeRecord& r :
        store_.ListStrokesAfter(material, fingertip, 0, /*with_csv=*/true)) {
     pair.known_through = std::max(pair.known_through, r.id);
-    StrokeData d;
-    try {
-      d = ParseStrokeCsv(r.csv, csv_options);
-    } catch (const StrokeCsvError&) {
-      continue;  // validated when stored; unreadable now: skip it
-    }
-    PrepareUpload(&d, labelling);
-    pair.samples += d.size();
-    cached_samples_ += d.size();
-    pair.uploads.emplace(r.id, std::move(d));
+    Cache(pair, r.id, r.csv);
   }
-  pair.labelling = labelling;
   pair.loaded = true;
 }
 
@@ -147,23 +166,13 @@ void Ingestor::CatchUp(Pair& pair,
                        const std::string& fingertip) {
   // Strokes another writer (a fleet daemon) stored: ids only, then the
   // unknown ones. Normally it lists only the previous upload of this daemon.
-  const StrokeCsvOptions csv_options{options_.max_samples_per_upload, 64};
   for (const StrokeRecord& r : store_.ListStrokesAfter(
            material, fingertip, pair.known_through, /*with_csv=*/false)) {
     pair.known_through = std::max(pair.known_through, r.id);
-    if (pair.uploads.count(r.id)) continue;
+    if (pair.sizes.count(r.id)) continue;
     auto full = store_.GetStroke(r.id);
     if (!full) continue;
-    StrokeData d;
-    try {
-      d = ParseStrokeCsv(full->csv, csv_options);
-    } catch (const StrokeCsvError&) {
-      continue;
-    }
-    PrepareUpload(&d, pair.labelling);
-    pair.samples += d.size();
-    cached_samples_ += d.size();
-    pair.uploads.emplace(r.id, std::move(d));
+    Cache(pair, r.id, full->csv);
   }
 }
 
@@ -177,28 +186,41 @@ FitData Ingestor::AssembleFitData(PairLock& lock,
   } else {
     CatchUp(pair, lock.material(), lock.fingertip());
   }
-  EvictBeyondCap(&pair);
   FitData out;
-  std::vector<const StrokeData*> uploads;
+  std::vector<std::int64_t> ids;
   std::vector<std::size_t> sizes;
-  uploads.reserve(pair.uploads.size());
-  sizes.reserve(pair.uploads.size());
-  for (const auto& [id, d] : pair.uploads) {
-    uploads.push_back(&d);
-    sizes.push_back(d.size());
+  ids.reserve(pair.sizes.size());
+  sizes.reserve(pair.sizes.size());
+  for (const auto& [id, n] : pair.sizes) {
+    ids.push_back(id);
+    sizes.push_back(n);
   }
-  out.uploads_stored = static_cast<int>(uploads.size());
-  out.samples_stored = pair.samples;
-  std::size_t reserve = upload.size();
+  out.uploads_stored = static_cast<int>(ids.size());
+  out.samples_stored = pair.samples_stored;
   const std::vector<std::size_t> chosen =
       SelectFitUploads(sizes, options_.fit_sample_cap);
+  // A pair the cache shed keeps its index: read back only the chosen
+  // uploads it no longer holds (a bounded refit reads a bounded number).
+  for (std::size_t i : chosen) {
+    if (pair.uploads.count(ids[i])) continue;
+    auto full = store_.GetStroke(ids[i]);
+    if (!full || !Cache(pair, ids[i], full->csv)) {
+      // Gone or unreadable now: it leaves the index.
+      pair.samples_stored -= sizes[i];
+      pair.sizes.erase(ids[i]);
+    }
+  }
+  EvictBeyondCap(&pair);
+  std::size_t reserve = upload.size();
   for (std::size_t i : chosen) reserve += sizes[i];
   out.strokes.Reserve(reserve);
   for (std::size_t i : chosen) {
-    out.strokes.Append(*uploads[i]);
+    auto it = pair.uploads.find(ids[i]);
+    if (it == pair.uploads.end()) continue;
+    out.strokes.Append(it->second);
     out.samples_used += sizes[i];
+    ++out.uploads_used;
   }
-  out.uploads_used = static_cast<int>(chosen.size());
   if (out.strokes.empty()) {
     out.strokes = upload;  // first upload of the pair: no merge needed
   } else {
@@ -213,6 +235,7 @@ void Ingestor::Append(PairLock& lock,
   Pair& pair = *lock.pair_;
   if (!pair.loaded) return;  // nothing cached: the next upload loads it all
   const std::size_t n = upload.size();
+  if (pair.sizes.emplace(stroke_id, n).second) pair.samples_stored += n;
   if (pair.uploads.emplace(stroke_id, std::move(upload)).second) {
     pair.samples += n;
     cached_samples_ += n;
@@ -252,7 +275,7 @@ void Ingestor::EvictBeyondCap(const Pair* keep) {
   for (auto& [use, pair] : order) {
     if (cached_samples_.load() <= options_.cache_sample_cap) break;
     std::unique_lock<std::mutex> lock(pair->mu, std::try_to_lock);
-    if (lock.owns_lock()) Drop(*pair);
+    if (lock.owns_lock()) Shed(*pair);
   }
 }
 

@@ -341,13 +341,45 @@ TEST_F(IngestorTest, CacheStaysWithinItsSampleCap) {
   lib.IngestStrokes("felt", SimulatedCsv(80), {});
   lib.IngestStrokes("felt", SimulatedCsv(81), {});
   lib.IngestStrokes("cork", SimulatedCsv(82), {});
-  // felt (least recently used) was dropped; its next refit reloads it.
+  // felt (least recently used) was shed; its next refit reads back the
+  // uploads it chooses (here all: below the fit cap).
   const IngestResult r = lib.IngestStrokes("felt", SimulatedCsv(83), {});
   EXPECT_EQ(r.version, 3);
   EXPECT_EQ(
       r.model->set.stochastic->samples_total,
       static_cast<int>(Samples(SimulatedCsv(80)) + Samples(SimulatedCsv(81)) +
                        Samples(SimulatedCsv(83))));
+}
+
+TEST_F(IngestorTest, AShedPairReadsBackOnlyTheChosenUploads) {
+  // 40 uploads; a fit cap that takes a stratified few; a cache cap that
+  // sheds the pair whenever another pair is ingested. The refit after a
+  // shed equals the refit of a pair that was never shed.
+  LibraryOptions small;
+  small.ingest.fit_sample_cap = 1500;
+  small.ingest.cache_sample_cap = 500;
+  LibraryOptions big = small;
+  big.ingest.cache_sample_cap = 100'000'000;
+  FrictionLibrary shed(OpenStore(":memory:"), small);
+  FrictionLibrary kept(OpenStore(":memory:"), big);
+  for (int k = 0; k < 40; ++k) {
+    const std::string csv = SimulatedCsv(200 + k, 2);
+    shed.IngestStrokes("felt", csv, {});
+    kept.IngestStrokes("felt", csv, {});
+    shed.IngestStrokes("cork", SimulatedCsv(500 + k, 2), {});  // sheds felt
+  }
+  const IngestResult a = shed.IngestStrokes("felt", SimulatedCsv(999, 2), {});
+  const IngestResult b = kept.IngestStrokes("felt", SimulatedCsv(999, 2), {});
+  EXPECT_EQ(a.version, 41);
+  EXPECT_EQ(a.model->set.stochastic->samples_total,
+            b.model->set.stochastic->samples_total);
+  EXPECT_LT(a.model->set.stochastic->samples_total,
+            40 * static_cast<int>(Samples(SimulatedCsv(200, 2))));
+  const auto& beta_a = a.model->set.stochastic->mu.beta;
+  const auto& beta_b = b.model->set.stochastic->mu.beta;
+  ASSERT_EQ(beta_a.size(), beta_b.size());
+  for (Eigen::Index i = 0; i < beta_a.size(); ++i)
+    EXPECT_EQ(beta_a[i], beta_b[i]) << i;
 }
 
 }  // namespace

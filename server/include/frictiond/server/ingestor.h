@@ -153,6 +153,12 @@ class Ingestor {
   void CatchUp(Pair& pair,
                const std::string& material,
                const std::string& fingertip);
+  // Parses and prepares a stored upload into the pair's cache and index;
+  // false when it no longer parses.
+  bool Cache(Pair& pair, std::int64_t id, const std::string& csv);
+  // Frees the pair's parsed uploads, keeping its index (sizes).
+  void Shed(Pair& pair);
+  // Forgets the pair entirely (the next upload reloads it).
   void Drop(Pair& pair);
   void EvictBeyondCap(const Pair* keep);
 
