@@ -8,6 +8,8 @@
 #include <mutex>
 #include <stdexcept>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -126,6 +128,50 @@ TEST_P(DriverTest, ThrowingWriteIsRolledBack) {
   }
   driver_->Read([](Connection& c) {
     EXPECT_EQ(c.Execute("SELECT COUNT(*) FROM t").Int(0, 0), 0);
+  });
+}
+
+// Writers running at once each get their own outcome: a write that
+// returned is stored whole (both of its rows), a write that threw left
+// nothing, and a write sees its own rows before it returns.
+TEST_P(DriverTest, ConcurrentWritersKeepTheirOwnOutcome) {
+  constexpr int kThreads = 6, kWrites = 40;
+  std::vector<std::vector<int>> outcome(kThreads, std::vector<int>(kWrites));
+  std::vector<std::thread> threads;
+  for (int t = 0; t < kThreads; ++t) {
+    threads.emplace_back([&, t] {
+      for (int i = 0; i < kWrites; ++i) {
+        const std::string name = "w" + std::to_string(t);
+        try {
+          driver_->Write([&](Connection& c) {
+            for (int row = 0; row < 2; ++row)
+              c.Execute("INSERT INTO t(name,n,data) VALUES($1,$2,'x')",
+                        Params().Text(name).Int(i));
+            EXPECT_EQ(c.Execute("SELECT COUNT(*) FROM t WHERE name=$1 AND n=$2",
+                                Params().Text(name).Int(i))
+                          .Int(0, 0),
+                      2);
+            if ((i + t) % 3 == 0) throw std::runtime_error("refused");
+          });
+          outcome[t][i] = 2;
+        } catch (const std::runtime_error&) {
+          outcome[t][i] = 0;
+        }
+      }
+    });
+  }
+  for (auto& th : threads) th.join();
+  driver_->Read([&](Connection& c) {
+    for (int t = 0; t < kThreads; ++t) {
+      for (int i = 0; i < kWrites; ++i) {
+        EXPECT_EQ(outcome[t][i], (i + t) % 3 == 0 ? 0 : 2);
+        EXPECT_EQ(c.Execute("SELECT COUNT(*) FROM t WHERE name=$1 AND n=$2",
+                            Params().Text("w" + std::to_string(t)).Int(i))
+                      .Int(0, 0),
+                  outcome[t][i])
+            << "writer " << t << " write " << i;
+      }
+    }
   });
 }
 
