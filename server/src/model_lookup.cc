@@ -96,4 +96,33 @@ ModelLookup LookUpModelForQuery(FrictionLibrary& library,
   }
 }
 
+ModelFamily RequireModelFamily(FrictionLibrary& library,
+                               const std::string& material,
+                               const std::string& fingertip,
+                               std::optional<int> version,
+                               const std::string& family_key,
+                               const std::string& kind,
+                               const nlohmann::json& hint) {
+  ModelFamily out;
+  out.model = version ? library.FindModelVersion(material, fingertip, *version)
+                      : library.FindModel(material, fingertip);
+  if (!out.model)
+    throw RequestError(StatusCode::kNotFound,
+                       "id",
+                       "no " + kind + " model for material '" + material +
+                           "', joint '" + fingertip + "'",
+                       hint);
+  auto it = out.model->set.other.find(family_key);
+  if (it == out.model->set.other.end() || it->is_null())
+    throw RequestError(StatusCode::kFailedPrecondition,
+                       family_key,
+                       "model version " +
+                           std::to_string(out.model->set.version) + " of '" +
+                           material + "' (joint '" + fingertip + "') has no " +
+                           kind + " family",
+                       hint);
+  out.family = &*it;
+  return out;
+}
+
 }  // namespace frictiond

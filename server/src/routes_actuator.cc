@@ -11,11 +11,13 @@
 //   GET  /v1/materials/{id}/actuator-mjcf?joint=&version=
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "frictiond/proto/actuator_json.h"
 #include "frictiond/proto/actuator_report.h"
+#include "frictiond/server/model_lookup.h"
 #include "frictiond/server/routes.h"
 
 namespace frictiond {
@@ -121,30 +123,16 @@ LoadedActuator LoadActuator(FrictionLibrary& lib, const HttpRequest& req) {
   const std::string& id = req.params.at(0);
   CheckId(id, "id");
   const std::string joint = JointParam(req);
-  LoadedActuator out;
-  if (auto v = req.Query("version")) {
-    out.model = lib.FindModelVersion(id, joint, ParseVersionParam(*v));
-  } else {
-    out.model = lib.FindModel(id, joint);
-  }
   const json hint = {{"upload",
                       "POST /v1/materials/" + id + "/actuator-logs?joint=" +
                           joint + " (application/json logs)"}};
-  if (!out.model)
-    throw RequestError(
-        StatusCode::kNotFound,
-        "id",
-        "no actuator model for '" + id + "', joint '" + joint + "'",
-        hint);
-  auto it = out.model->set.other.find(kActuatorFamilyKey);
-  if (it == out.model->set.other.end() || it->is_null())
-    throw RequestError(
-        StatusCode::kFailedPrecondition,
-        kActuatorFamilyKey,
-        "model version " + std::to_string(out.model->set.version) + " of '" +
-            id + "' (joint '" + joint + "') has no actuator family",
-        hint);
-  out.family = *it;
+  std::optional<int> version;
+  if (auto v = req.Query("version")) version = ParseVersionParam(*v);
+  const ModelFamily found = RequireModelFamily(
+      lib, id, joint, version, kActuatorFamilyKey, "actuator", hint);
+  LoadedActuator out;
+  out.model = found.model;
+  out.family = *found.family;
   try {
     out.actuator = ActuatorModelFromJson(out.family.at("model"));
   } catch (const std::exception& e) {

@@ -16,6 +16,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -23,6 +24,7 @@
 #include "frictiond/estimators/joint_identification.h"
 #include "frictiond/estimators/repeatability.h"
 #include "frictiond/proto/joint_json.h"
+#include "frictiond/server/model_lookup.h"
 #include "frictiond/server/routes.h"
 
 namespace frictiond {
@@ -212,37 +214,21 @@ LoadedFamily LoadFamily(FrictionLibrary& lib,
                         const std::string& joint,
                         const HttpRequest* req) {
   CheckId(material, "id");
-  LoadedFamily out;
-  if (req) {
-    if (auto v = req->Query("version")) {
-      out.model = lib.FindModelVersion(material, joint, ParseVersionParam(*v));
-    } else {
-      out.model = lib.FindModel(material, joint);
-    }
-  } else {
-    out.model = lib.FindModel(material, joint);
-  }
   const json upload_hint = {{"upload",
                              "POST /v1/materials/" + material +
                                  "/joint-data?joint=" + joint +
                                  " (text/csv: v_mm_s, "
                                  "load_n, mu, temp_c or eta_pa_s)"}};
-  if (!out.model)
-    throw RequestError(
-        StatusCode::kNotFound,
-        "id",
-        "no joint model for material '" + material + "', joint '" + joint + "'",
-        upload_hint);
-  auto it = out.model->set.other.find(kJointFamilyKey);
-  if (it == out.model->set.other.end() || it->is_null())
-    throw RequestError(
-        StatusCode::kFailedPrecondition,
-        kJointFamilyKey,
-        "model version " + std::to_string(out.model->set.version) + " of '" +
-            material + "' (joint '" + joint + "') has no joint family",
-        upload_hint);
+  std::optional<int> version;
+  if (req) {
+    if (auto v = req->Query("version")) version = ParseVersionParam(*v);
+  }
+  const ModelFamily found = RequireModelFamily(
+      lib, material, joint, version, kJointFamilyKey, "joint", upload_hint);
+  LoadedFamily out;
+  out.model = found.model;
   try {
-    out.family = JointFamilyFromJson(*it);
+    out.family = JointFamilyFromJson(*found.family);
   } catch (const std::invalid_argument& e) {
     throw std::runtime_error(std::string("stored joint family is malformed: ") +
                              e.what());

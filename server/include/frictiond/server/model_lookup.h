@@ -11,6 +11,8 @@
 #include <optional>
 #include <string>
 
+#include <nlohmann/json.hpp>
+
 #include "frictiond/server/identification_jobs.h"
 #include "frictiond/server/library.h"
 #include "frictiond/server/recognition_hook.h"
@@ -60,5 +62,26 @@ ModelLookup LookUpModelForQuery(FrictionLibrary& library,
                                 const std::string& fingertip,
                                 const std::string& image,
                                 const std::string& requested_by);
+
+/// One stored model family (an entry of the model's other families, such as
+/// "actuator" or "joint") of a pair's model.
+struct ModelFamily {
+  std::shared_ptr<const CachedModel> model;  ///< the version it is from
+  const nlohmann::json* family = nullptr;    ///< inside `model`; not null
+};
+
+/// The family `family_key` of the pair's newest model, or of model version
+/// `version` when given. `kind` names the model in messages ("actuator",
+/// "joint"); `hint` (e.g. how to upload the data) is the error's extra.
+/// @throws RequestError(StatusCode::kNotFound, "id") when the pair has no
+/// model (or not that version); RequestError(StatusCode::kFailedPrecondition,
+/// `family_key`) when that version has no such family.
+ModelFamily RequireModelFamily(FrictionLibrary& library,
+                               const std::string& material,
+                               const std::string& fingertip,
+                               std::optional<int> version,
+                               const std::string& family_key,
+                               const std::string& kind,
+                               const nlohmann::json& hint);
 
 }  // namespace frictiond
