@@ -169,6 +169,42 @@ void ValidateActuatorLog(const ActuatorLog& log) {
           " (must be > the previous " + Num(log.t_s[i - 1]) + ")");
 }
 
+ActuatorCommand CalcActuatorCommand(const ActuatorModel& m,
+                                    const ActuatorLog& log,
+                                    std::size_t k,
+                                    double q_rad,
+                                    double motor_speed_rad_s) {
+  const std::size_t n = log.size();
+  ActuatorCommand out;
+  out.r_ohm = std::max(
+      1e-3,
+      m.r_ohm *
+          (1.0 + m.r_temp_coeff_per_c * (log.temp_c[k] - kResistanceRefTempC)));
+  out.enabled = log.torque_enable[k] != 0;
+  const double delay_steps = std::max(0.0, m.command_delay_s / log.dt_s);
+  double goal = log.goal_rad[k];
+  if (delay_steps > 0) {
+    const double back = static_cast<double>(k) - delay_steps;
+    if (back <= 0) {
+      goal = log.goal_rad[0];
+    } else {
+      const std::size_t i = static_cast<std::size_t>(back);
+      const double w = back - static_cast<double>(i);
+      goal = log.goal_rad[i] +
+             w * (log.goal_rad[std::min(i + 1, n - 1)] - log.goal_rad[i]);
+    }
+  }
+  const double gain = log.kp * kXl330ErrorGain * m.gain_scale;
+  double duty = gain * (goal - q_rad);
+  if (m.current_limit_a > 0) {
+    const double center = m.kt * motor_speed_rad_s / log.vin_v;
+    const double span = out.r_ohm * m.current_limit_a / log.vin_v;
+    duty = Clip(duty, center - span, center + span);
+  }
+  out.duty = Clip(duty, -1.0, 1.0);
+  return out;
+}
+
 double SimulateActuatorLog(const ActuatorModel& m,
                            const ActuatorLog& log,
                            ActuatorRolloutTrace* trace) {
@@ -177,11 +213,9 @@ double SimulateActuatorLog(const ActuatorModel& m,
   const double ml2 = log.mass_kg * log.length_m * log.length_m;
   const double inertia = ml2 + m.armature_kg_m2;
   const double mgl = log.mass_kg * kGravityM_s2 * log.length_m;
-  const double gain = log.kp * kXl330ErrorGain * m.gain_scale;
   const double kt = m.kt;
   const ActuatorFrictionParams& fp = m.friction;
   const bool lugre = m.law == ActuatorFrictionLaw::kLuGre;
-  const double delay_steps = std::max(0.0, m.command_delay_s / dt);
   const double half_gap = 0.5 * m.backlash_rad;
   const bool backlash = half_gap > 0 && m.armature_kg_m2 > 0;
   if (trace) {
@@ -205,31 +239,11 @@ double SimulateActuatorLog(const ActuatorModel& m,
   for (std::size_t k = 0; k < n; ++k) {
     err += std::abs(q - log.q_rad[k]);
     if (trace) trace->q_rad.push_back(q);
-    const double r =
-        std::max(1e-3,
-                 m.r_ohm * (1.0 + m.r_temp_coeff_per_c *
-                                      (log.temp_c[k] - kResistanceRefTempC)));
-    const bool enabled = log.torque_enable[k] != 0;
-    double goal = log.goal_rad[k];
-    if (delay_steps > 0) {
-      const double back = static_cast<double>(k) - delay_steps;
-      if (back <= 0) {
-        goal = log.goal_rad[0];
-      } else {
-        const std::size_t i = static_cast<std::size_t>(back);
-        const double w = back - static_cast<double>(i);
-        goal = log.goal_rad[i] +
-               w * (log.goal_rad[std::min(i + 1, n - 1)] - log.goal_rad[i]);
-      }
-    }
-    double duty = gain * (goal - q);
-    if (m.current_limit_a > 0) {
-      const double center = kt * (backlash ? dqm : dq) / log.vin_v;
-      const double span = r * m.current_limit_a / log.vin_v;
-      duty = Clip(duty, center - span, center + span);
-    }
-    duty = Clip(duty, -1.0, 1.0);
-    const double volts = log.vin_v * duty;
+    const ActuatorCommand command =
+        CalcActuatorCommand(m, log, k, q, backlash ? dqm : dq);
+    const double r = command.r_ohm;
+    const bool enabled = command.enabled;
+    const double volts = log.vin_v * command.duty;
     auto motor_torque = [&](double speed) {
       return enabled ? kt * (volts - kt * speed) / r : 0.0;
     };

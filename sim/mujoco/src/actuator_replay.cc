@@ -89,9 +89,7 @@ ActuatorReplay ReplayActuatorLog(const ActuatorModel& model,
   friction.TagJoint(m.get(), joint, model.law, model.friction);
 
   const std::size_t n = log.size();
-  const double gain = log.kp * kXl330ErrorGain * model.gain_scale;
   const double kt = model.kt;
-  const double delay_steps = std::max(0.0, model.command_delay_s / log.dt_s);
   d->qpos[0] = log.q_rad[0];
   d->qvel[0] = log.dq_rad_s[0];
   ActuatorReplay out;
@@ -104,30 +102,11 @@ ActuatorReplay ReplayActuatorLog(const ActuatorModel& model,
     out.q_rad.push_back(q);
     err += std::abs(q - log.q_rad[k]);
     // actuator_sim.h's controller on the simulated q.
-    const double r = std::max(
-        1e-3,
-        model.r_ohm * (1.0 + model.r_temp_coeff_per_c *
-                                 (log.temp_c[k] - kResistanceRefTempC)));
-    const bool enabled = log.torque_enable[k] != 0;
-    double goal = log.goal_rad[k];
-    if (delay_steps > 0) {
-      const double back = static_cast<double>(k) - delay_steps;
-      if (back <= 0) {
-        goal = log.goal_rad[0];
-      } else {
-        const std::size_t i = static_cast<std::size_t>(back);
-        const double w = back - static_cast<double>(i);
-        goal = log.goal_rad[i] +
-               w * (log.goal_rad[std::min(i + 1, n - 1)] - log.goal_rad[i]);
-      }
-    }
-    double duty = gain * (goal - q);
-    if (model.current_limit_a > 0) {
-      const double center = kt * d->qvel[0] / log.vin_v;
-      const double span = r * model.current_limit_a / log.vin_v;
-      duty = std::clamp(duty, center - span, center + span);
-    }
-    duty = std::clamp(duty, -1.0, 1.0);
+    const ActuatorCommand command =
+        CalcActuatorCommand(model, log, k, q, d->qvel[0]);
+    const double r = command.r_ohm;
+    const bool enabled = command.enabled;
+    const double duty = command.duty;
     // DC motor: tau_m = (kt / R) V - (kt^2 / R) dq, off when released.
     m->actuator_gainprm[0] = enabled ? kt / r : 0.0;
     m->actuator_biasprm[2] = enabled ? -kt * kt / r : 0.0;

@@ -50,6 +50,7 @@
 ///   FitActuatorModel({&log}, m, ActuatorLawParams(m.law), {});
 /// @endcode
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -125,6 +126,25 @@ struct ActuatorRolloutTrace {
 double SimulateActuatorLog(const ActuatorModel& model,
                            const ActuatorLog& log,
                            ActuatorRolloutTrace* trace = nullptr);
+
+/// What the controller commands at log entry `k` (the rule every rollout
+/// shares: SimulateActuatorLog, sim/mujoco's ReplayActuatorLog).
+struct ActuatorCommand {
+  double r_ohm = 0;      ///< winding resistance at the entry's temperature
+  double duty = 0;       ///< in [-1, 1]; the motor voltage is vin_v * duty
+  bool enabled = false;  ///< torque enabled (else the motor is released)
+};
+
+/// The controller at entry `k` given the simulated output angle `q_rad` and
+/// the motor speed `motor_speed_rad_s` (the current limit centres on its
+/// back-EMF): goal delayed by the model's command delay (interpolated),
+/// duty = g kp g_e (goal - q), clipped to the current limit and to [-1, 1];
+/// r = r_ohm (1 + alpha (T - 30 C)), at least 1e-3 ohm.
+ActuatorCommand CalcActuatorCommand(const ActuatorModel& model,
+                                    const ActuatorLog& log,
+                                    std::size_t k,
+                                    double q_rad,
+                                    double motor_speed_rad_s);
 
 /// @throws std::invalid_argument naming the field, value and rule (header
 /// fields > 0, equal lengths >= 2, finite values, strictly increasing t).
