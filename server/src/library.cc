@@ -310,6 +310,37 @@ bool FrictionLibrary::PutFingertip(const Fingertip& fingertip) {
   return store_->PutFingertip(fingertip);
 }
 
+bool FrictionLibrary::PutRobot(const std::string& id,
+                               const RobotDescription& robot) {
+  CheckId(id, "id");
+  for (std::size_t i = 0; i < robot.friction.size(); ++i) {
+    if (!robot.friction[i]) continue;
+    const std::string at = "joints[" + std::to_string(i) + "].friction.";
+    for (const auto& [name, value] :
+         {std::pair<const char*, const std::string*>{
+              "material", &robot.friction[i]->material},
+          {"joint", &robot.friction[i]->joint}}) {
+      if (!IsValidId(*value))
+        throw RequestError(StatusCode::kInvalidArgument,
+                           at + name,
+                           at + name + " = '" + value->substr(0, 64) +
+                               "' (must match [A-Za-z0-9._-]{1,64})");
+    }
+  }
+  return store_->PutRobot(RobotRecord{id, RobotToJson(robot).dump(), "", ""});
+}
+
+std::int64_t FrictionLibrary::AddReferenceImage(const ImageRecord& image) {
+  CheckId(image.material, "id");
+  if (!store_->GetMaterial(image.material))
+    throw RequestError(StatusCode::kNotFound,
+                       "id",
+                       "unknown material '" + image.material +
+                           "' (create it with PUT /v1/materials/" +
+                           image.material + " first)");
+  return store_->AddImage(image);
+}
+
 bool FrictionLibrary::DeleteMaterial(const std::string& id) {
   CheckId(id, "id");
   const bool deleted = store_->DeleteMaterial(id);

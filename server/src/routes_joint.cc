@@ -579,25 +579,8 @@ HttpResponse HandlePutRobot(FrictionLibrary& lib, const HttpRequest& req) {
   } catch (const std::invalid_argument& e) {
     BadInput(e, "body");
   }
-  for (std::size_t i = 0; i < robot.friction.size(); ++i) {
-    if (!robot.friction[i]) continue;
-    const std::string at = "joints[" + std::to_string(i) + "].friction.";
-    if (!IsValidId(robot.friction[i]->material))
-      throw RequestError(StatusCode::kInvalidArgument,
-                         at + "material",
-                         at + "material = '" +
-                             robot.friction[i]->material.substr(0, 64) +
-                             "' (must match [A-Za-z0-9._-]{1,64})");
-    if (!IsValidId(robot.friction[i]->joint))
-      throw RequestError(StatusCode::kInvalidArgument,
-                         at + "joint",
-                         at + "joint = '" +
-                             robot.friction[i]->joint.substr(0, 64) +
-                             "' (must match [A-Za-z0-9._-]{1,64})");
-  }
+  const bool created = lib.PutRobot(id, robot);
   const json doc = RobotToJson(robot);
-  const bool created =
-      lib.store().PutRobot(RobotRecord{id, doc.dump(), "", ""});
   json body = doc;
   body["robot"] = id;
   return HttpResponse::Json(created ? 201 : 200, body);

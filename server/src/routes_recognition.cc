@@ -117,7 +117,7 @@ RecognizeImageFn RegisterRecognitionRoutes(HttpServer& http,
                rec.material = id;
                rec.mime = mime.empty() ? "application/octet-stream" : mime;
                rec.features = EncodeFeatures(features);
-               const std::int64_t image_id = lib.store().AddImage(rec);
+               const std::int64_t image_id = lib.AddReferenceImage(rec);
                recognizer->AddReferenceFeatures(id, std::move(features));
                return HttpResponse::Json(
                    201,

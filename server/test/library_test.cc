@@ -131,6 +131,41 @@ TEST_F(LibraryTest, FamilyFittersAndListenersRun) {
   EXPECT_NE(r.fit_note.find("demo: saw"), std::string::npos) << r.fit_note;
 }
 
+// Robots and reference images are written through the library, which
+// checks what the store cannot: ids inside a robot's friction references,
+// the material an image belongs to.
+TEST_F(LibraryTest, PutRobotAndAddReferenceImageCheckTheirReferences) {
+  nlohmann::json arm = nlohmann::json::parse(R"({
+    "joints": [{"type": "revolute", "a_mm": 400, "stiffness": 20000,
+                "friction": {"material": "steel-oil", "joint": "j1"}}],
+    "q_home": [0]})");
+  EXPECT_TRUE(lib_.PutRobot("arm1", RobotFromJson(arm)));
+  EXPECT_FALSE(lib_.PutRobot("arm1", RobotFromJson(arm)));
+  arm["joints"][0]["friction"]["joint"] = "no spaces";
+  try {
+    lib_.PutRobot("arm2", RobotFromJson(arm));
+    ADD_FAILURE() << "invalid joint id accepted";
+  } catch (const RequestError& e) {
+    EXPECT_EQ(e.code(), StatusCode::kInvalidArgument);
+    EXPECT_EQ(e.field(), "joints[0].friction.joint");
+  }
+  EXPECT_FALSE(lib_.store().GetRobot("arm2"));
+
+  ImageRecord image;
+  image.material = "felt";
+  image.mime = "image/png";
+  image.features = std::string(16, '\0');
+  try {
+    lib_.AddReferenceImage(image);
+    ADD_FAILURE() << "image of an unknown material accepted";
+  } catch (const RequestError& e) {
+    EXPECT_EQ(e.code(), StatusCode::kNotFound);
+    EXPECT_EQ(e.field(), "id");
+  }
+  lib_.PutMaterial("felt", MaterialUpdate{});
+  EXPECT_GT(lib_.AddReferenceImage(image), 0);
+}
+
 TEST_F(LibraryTest, PutMaterialTakesTypedFieldsAndKeepsUnsetOnes) {
   MaterialUpdate u;
   u.name = "Felt pad";

@@ -20,6 +20,7 @@
 #include <nlohmann/json.hpp>
 
 #include "frictiond/estimators/stochastic_model.h"
+#include "frictiond/proto/joint_json.h"
 #include "frictiond/proto/model_json.h"
 #include "frictiond/server/identification_jobs.h"
 #include "frictiond/server/ingestor.h"
@@ -133,6 +134,19 @@ class FrictionLibrary {
   /// at most 4000 bytes, valid UTF-8). @return true when created.
   /// @throws RequestError(StatusCode::kInvalidArgument) naming the field.
   bool PutFingertip(const Fingertip& fingertip);
+
+  // --- robots and reference images ------------------------------------------
+  /// Creates or replaces a robot description (joint friction references
+  /// name a material and a joint by id). @return true when created.
+  /// @throws RequestError(StatusCode::kInvalidArgument) naming the field
+  /// ("id", "joints[i].friction.material", ...); nothing is stored then.
+  bool PutRobot(const std::string& id, const RobotDescription& robot);
+  /// Stores a reference image's features for `image.material` (which must
+  /// exist); `image.id` and `created_at` are set by the store.
+  /// @return the image id. @throws RequestError(StatusCode::kInvalidArgument,
+  /// "id") for an invalid material id, RequestError(StatusCode::kNotFound,
+  /// "id") for an unknown material.
+  std::int64_t AddReferenceImage(const ImageRecord& image);
 
   // --- models ---------------------------------------------------------------
   /// Newest model of the pair, or nullptr when there is none.
