@@ -138,13 +138,17 @@ bool Ingestor::Cache(Pair& pair, std::int64_t id, const std::string& csv) {
     return false;  // validated when stored; unreadable now: skip it
   }
   PrepareUpload(&d, pair.labelling);
-  const std::size_t n = d.size();
+  Insert(pair, id, std::move(d));
+  return true;
+}
+
+void Ingestor::Insert(Pair& pair, std::int64_t id, StrokeData upload) {
+  const std::size_t n = upload.size();
   if (pair.sizes.emplace(id, n).second) pair.samples_stored += n;
-  if (pair.uploads.emplace(id, std::move(d)).second) {
+  if (pair.uploads.emplace(id, std::move(upload)).second) {
     pair.samples += n;
     cached_samples_ += n;
   }
-  return true;
 }
 
 void Ingestor::Load(Pair& pair,
@@ -234,12 +238,7 @@ void Ingestor::Append(PairLock& lock,
                       StrokeData upload) {
   Pair& pair = *lock.pair_;
   if (!pair.loaded) return;  // nothing cached: the next upload loads it all
-  const std::size_t n = upload.size();
-  if (pair.sizes.emplace(stroke_id, n).second) pair.samples_stored += n;
-  if (pair.uploads.emplace(stroke_id, std::move(upload)).second) {
-    pair.samples += n;
-    cached_samples_ += n;
-  }
+  Insert(pair, stroke_id, std::move(upload));
   EvictBeyondCap(&pair);
 }
 

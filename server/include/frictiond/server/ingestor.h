@@ -156,6 +156,8 @@ class Ingestor {
   // Parses and prepares a stored upload into the pair's cache and index;
   // false when it no longer parses.
   bool Cache(Pair& pair, std::int64_t id, const std::string& csv);
+  // Adds a prepared upload to the pair's cache and index (once per id).
+  void Insert(Pair& pair, std::int64_t id, StrokeData upload);
   // Frees the pair's parsed uploads, keeping its index (sizes).
   void Shed(Pair& pair);
   // Forgets the pair entirely (the next upload reloads it).
