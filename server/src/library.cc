@@ -330,14 +330,18 @@ bool FrictionLibrary::PutRobot(const std::string& id,
   return store_->PutRobot(RobotRecord{id, RobotToJson(robot).dump(), "", ""});
 }
 
-std::int64_t FrictionLibrary::AddReferenceImage(const ImageRecord& image) {
-  CheckId(image.material, "id");
-  if (!store_->GetMaterial(image.material))
+void FrictionLibrary::RequireImageMaterial(const std::string& id) {
+  CheckId(id, "id");
+  if (!store_->GetMaterial(id))
     throw RequestError(StatusCode::kNotFound,
                        "id",
-                       "unknown material '" + image.material +
-                           "' (create it with PUT /v1/materials/" +
-                           image.material + " first)");
+                       "unknown material '" + id +
+                           "' (create it with PUT /v1/materials/" + id +
+                           " first)");
+}
+
+std::int64_t FrictionLibrary::AddReferenceImage(const ImageRecord& image) {
+  RequireImageMaterial(image.material);
   return store_->AddImage(image);
 }
 

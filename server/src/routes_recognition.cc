@@ -99,13 +99,9 @@ RecognizeImageFn RegisterRecognitionRoutes(HttpServer& http,
                const std::string& id = req.params[0];
                CheckId(id, "id");
                const std::string mime = ImageMime(req);
-               if (!lib.store().GetMaterial(id)) {
-                 throw RequestError(StatusCode::kNotFound,
-                                    "id",
-                                    "unknown material '" + id +
-                                        "' (create it with PUT /v1/materials/" +
-                                        id + " first)");
-               }
+               // Before decoding the image: an unknown material is a 404
+               // whatever the body holds.
+               lib.RequireImageMaterial(id);
                std::vector<float> features;
                try {
                  features = recognizer->ExtractFeatures(req.body);

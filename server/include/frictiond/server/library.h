@@ -141,11 +141,14 @@ class FrictionLibrary {
   /// @throws RequestError(StatusCode::kInvalidArgument) naming the field
   /// ("id", "joints[i].friction.material", ...); nothing is stored then.
   bool PutRobot(const std::string& id, const RobotDescription& robot);
-  /// Stores a reference image's features for `image.material` (which must
-  /// exist); `image.id` and `created_at` are set by the store.
-  /// @return the image id. @throws RequestError(StatusCode::kInvalidArgument,
-  /// "id") for an invalid material id, RequestError(StatusCode::kNotFound,
-  /// "id") for an unknown material.
+  /// Checks that reference images may be added to material `id`.
+  /// @throws RequestError(StatusCode::kInvalidArgument, "id") for an
+  /// invalid id, RequestError(StatusCode::kNotFound, "id") for an unknown
+  /// material (the message says to create it first).
+  void RequireImageMaterial(const std::string& id);
+  /// Stores a reference image's features for `image.material`, checked by
+  /// RequireImageMaterial; `image.id` and `created_at` are set by the store.
+  /// @return the image id. @throws what RequireImageMaterial throws.
   std::int64_t AddReferenceImage(const ImageRecord& image);
 
   // --- models ---------------------------------------------------------------
