@@ -264,27 +264,20 @@ std::optional<HttpResponse> Authenticator::Authorize(
   }
   request.actor = token->id;
   request.role = token->role;
+  if (request.method != "GET" &&
+      static_cast<int>(need) >= static_cast<int>(Role::kRobot))
+    request.audit_action = what;
   return std::nullopt;
 }
 
 void Authenticator::Observe(const HttpRequest& request,
-                            const std::string& pattern,
+                            const std::string& /*pattern*/,
                             const HttpResponse& response) {
-  if (request.method == "GET" || response.status < 200 ||
-      response.status >= 300)
+  if (request.audit_action.empty() || response.audit_committed ||
+      response.status < 200 || response.status >= 300)
     return;
-  const Role need = RequiredRole(request.method, pattern);
-  if (static_cast<int>(need) < static_cast<int>(Role::kRobot)) return;
-  AuditEntry e;
-  e.actor = request.actor;
-  e.role = request.role;
-  e.remote = request.remote_addr;
-  e.action = request.method + " " + pattern;
-  if (pattern.rfind("/v1/materials/{id}", 0) == 0 && !request.params.empty())
-    e.material = request.params[0];
-  json detail = {{"status", response.status}};
-  if (pattern.rfind("/v1/materials/{id}", 0) != 0 && !request.params.empty())
-    detail["target"] = request.params[0];
+  AuditEntry e = HttpAuditEntry(request, response.status);
+  json detail = json::parse(e.detail);
   const json body = json::parse(response.body, nullptr, false);
   if (body.is_object()) {
     for (const char* k : kAuditKeys) {
@@ -294,6 +287,25 @@ void Authenticator::Observe(const HttpRequest& request,
   }
   e.detail = detail.dump();
   store_.AppendAudit(e);
+}
+
+AuditEntry HttpAuditEntry(const HttpRequest& request, int status) {
+  AuditEntry e;
+  e.actor = request.actor;
+  e.role = request.role;
+  e.remote = request.remote_addr;
+  e.action = request.audit_action;
+  const std::string pattern = e.action.substr(e.action.find(' ') + 1);
+  const bool material_route = pattern.rfind("/v1/materials/{id}", 0) == 0;
+  json detail = {{"status", status}};
+  if (!request.params.empty()) {
+    if (material_route)
+      e.material = request.params[0];
+    else
+      detail["target"] = request.params[0];
+  }
+  e.detail = detail.dump();
+  return e;
 }
 
 CreatedToken Authenticator::CreateToken(const std::string& name,

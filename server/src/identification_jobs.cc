@@ -291,12 +291,13 @@ void JobStrokeCollector::Close(std::int64_t job_id) {
 namespace {
 
 // Audit log entry for a write of a job's strokes: the sender's actor and
-// role, the job's pair, and `detail` (status, version or why). A store that
-// is down loses the entry, not the answer to the robot.
-void AuditStrokeWrite(Store& store,
-                      const IdentificationJob& job,
-                      const StrokeSender& sender,
-                      json detail) {
+// role, the job's pair, and `detail` (status, version or why). A fitted
+// job's entry is committed with its upload (IngestOptions::audit); a failed
+// job's is appended by AuditStrokeWrite, where a store that is down loses
+// the entry, not the answer to the robot.
+AuditEntry StrokeWriteEntry(const IdentificationJob& job,
+                            const StrokeSender& sender,
+                            json detail) {
   AuditEntry e;
   e.actor = sender.actor.substr(0, 128);
   e.role = sender.role;
@@ -306,8 +307,15 @@ void AuditStrokeWrite(Store& store,
   detail["fingertip"] = job.fingertip;
   detail["signed"] = sender.is_signed;
   e.detail = detail.dump();
+  return e;
+}
+
+void AuditStrokeWrite(Store& store,
+                      const IdentificationJob& job,
+                      const StrokeSender& sender,
+                      json detail) {
   try {
-    store.AppendAudit(e);
+    store.AppendAudit(StrokeWriteEntry(job, sender, std::move(detail)));
   } catch (const std::exception& ex) {
     std::cerr << "frictiond: audit of an LCM write lost: " << ex.what() << "\n";
   }
@@ -427,6 +435,9 @@ StrokeOutcome JobStrokeCollector::Fit(IdentificationJob* job,
   IngestOptions io;
   io.fingertip = job->fingertip;
   io.robot = sender.actor.substr(0, 128);
+  // The write's audit entry is committed with it (Store::CommitUpload).
+  io.audit = StrokeWriteEntry(
+      *job, sender, {{"status", 201}, {"strokes", progress.strokes.size()}});
   try {
     const IngestResult r =
         library_.IngestStrokes(job->material, FormatStrokeCsv(all), io);
@@ -437,12 +448,6 @@ StrokeOutcome JobStrokeCollector::Fit(IdentificationJob* job,
                  "); " + coverage.detail;
     library_.jobs().Transition(job, JobState::kFitted, out.detail);
     out.state = JobState::kFitted;
-    AuditStrokeWrite(library_.store(),
-                     *job,
-                     sender,
-                     {{"status", 201},
-                      {"version", r.version},
-                      {"strokes", progress.strokes.size()}});
     Close(job->id);  // before the robot hears of it
   } catch (const RequestError& e) {
     out.kind = StrokeOutcome::Kind::kFailed;

@@ -521,7 +521,20 @@ IngestResult FrictionLibrary::IngestStrokes(const std::string& material,
   doc.erase("version");
   doc.erase("created_at");
   record.json = doc.dump();
-  const UploadCommit commit = store_->CommitUpload(stroke, record);
+  std::optional<AuditEntry> audit = options.audit;
+  if (audit) {
+    json detail = audit->detail.empty()
+                      ? json::object()
+                      : json::parse(audit->detail, nullptr, false);
+    if (detail.is_object()) {  // otherwise CommitUpload refuses it
+      detail["fingertip"] = options.fingertip;
+      detail["samples"] = n_new;
+      detail["fit_status"] = ToString(fit.status);
+      audit->detail = detail.dump();
+    }
+  }
+  const UploadCommit commit =
+      store_->CommitUpload(stroke, record, audit ? &*audit : nullptr);
   // 6. The committed version, from what was committed (no re-read).
   record.version = commit.version;
   record.created_at = commit.created_at;

@@ -1,5 +1,6 @@
 #include <cmath>
 
+#include "frictiond/server/auth.h"
 #include "frictiond/server/identification_json.h"
 #include "frictiond/server/routes.h"
 #include "frictiond/server/text.h"
@@ -276,6 +277,9 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
         options.labelling = ParseLabelling(
             [&req](const std::string& n) { return req.Query(n); },
             SlipLabelOptions{});
+        // The audit entry goes into the upload's transaction: one flush per
+        // upload instead of two, and no upload without its entry.
+        if (!req.audit_action.empty()) options.audit = HttpAuditEntry(req, 201);
         const IngestResult r = lib.IngestStrokes(id, req.body, options);
         const StochasticFrictionModel& m = *r.model->set.stochastic;
         json coef = json::object();
@@ -294,6 +298,7 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
                      {"slip_samples", m.samples_slip}};
         if (!r.fit_note.empty()) body["note"] = r.fit_note;
         HttpResponse out = HttpResponse::Json(201, body);
+        out.audit_committed = options.audit.has_value();
         out.headers.emplace("Location",
                             "/v1/materials/" + id +
                                 "/model?version=" + std::to_string(r.version) +

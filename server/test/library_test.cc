@@ -80,6 +80,32 @@ TEST_F(LibraryTest, NoSlipIsUnprocessableAndStoresNothing) {
   EXPECT_TRUE(lib_.store().ListStrokes("glass", "default").empty());
 }
 
+TEST_F(LibraryTest, AnUploadsAuditEntryIsStoredWithItAndOnlyThen) {
+  IngestOptions o;
+  o.fingertip = "tip-a";
+  o.audit = AuditEntry{};
+  o.audit->actor = "lcm:r1";
+  o.audit->action = "LCM stroke_chunk_v2";
+  o.audit->material = "felt";
+  o.audit->detail = R"({"status":201,"job":7})";
+  const IngestResult r = lib_.IngestStrokes("felt", SimulatedCsv(9), o);
+  auto log = lib_.store().ListAudit(0, 100, "felt");
+  ASSERT_EQ(log.size(), 1u);
+  const json d = json::parse(log[0].detail);
+  EXPECT_EQ(d["job"], 7);  // the caller's detail, completed
+  EXPECT_EQ(d["fingertip"], "tip-a");
+  EXPECT_EQ(d["samples"], r.samples);
+  EXPECT_EQ(d["fit_status"], r.fit_status);
+  EXPECT_EQ(d["stroke_id"], r.stroke_id);
+  EXPECT_EQ(d["version"], r.version);
+  EXPECT_EQ(d["material_created"], true);
+  // A refused upload (a negative normal force) logs nothing.
+  EXPECT_THROW(
+      lib_.IngestStrokes("felt", "t_s,fn_n,ft_n,v_mm_s\n0,-2,1,0\n", o),
+      RequestError);
+  EXPECT_EQ(lib_.store().ListAudit(0, 100, "felt").size(), 1u);
+}
+
 TEST_F(LibraryTest, BadCsvNamesLineAndFieldAndStoresNothing) {
   try {
     lib_.IngestStrokes(

@@ -308,8 +308,20 @@ class SqlStore final : public Store {
   }
 
   // --- strokes and models ----------------------------------------------------
+  using Store::CommitUpload;
   UploadCommit CommitUpload(const StrokeRecord& stroke,
-                            const ModelRecord& model) override {
+                            const ModelRecord& model,
+                            const AuditEntry* audit) override {
+    // The audit detail is built before the transaction: a malformed one
+    // throws here, before anything is written.
+    nlohmann::json detail;
+    if (audit) {
+      detail = audit->detail.empty()
+                   ? nlohmann::json::object()
+                   : nlohmann::json::parse(audit->detail, nullptr, false);
+      if (!detail.is_object())
+        throw std::invalid_argument("audit detail: must be a JSON object");
+    }
     return Write([&](Connection& c) {
       UploadCommit out;
       const std::string now = NowIso8601();
@@ -348,6 +360,15 @@ class SqlStore final : public Store {
                     .Text(now)
                     .Text(stroke.material)
                     .Text(stroke.fingertip));
+      if (audit) {
+        AuditEntry e = *audit;
+        nlohmann::json d = detail;
+        d["stroke_id"] = out.stroke_id;
+        d["version"] = out.version;
+        d["material_created"] = out.material_created;
+        e.detail = d.dump();
+        InsertAudit(c, e, now);
+      }
       c.Notify(stroke.material, stroke.fingertip);
       return out;
     });
@@ -631,21 +652,8 @@ class SqlStore final : public Store {
   }
 
   std::int64_t AppendAudit(const AuditEntry& e) override {
-    return Write([&](Connection& c) {
-      return c
-          .Execute(
-              "INSERT INTO audit(at,actor,role,remote,action,material,detail) "
-              "VALUES($1,$2,$3,$4,$5,$6,$7) RETURNING id",
-              Params()
-                  .Text(NowIso8601())
-                  .Text(e.actor)
-                  .Text(e.role)
-                  .Text(e.remote)
-                  .Text(e.action)
-                  .Text(e.material)
-                  .Text(e.detail))
-          .Int(0, 0);
-    });
+    return Write(
+        [&](Connection& c) { return InsertAudit(c, e, NowIso8601()); });
   }
 
   std::vector<AuditEntry> ListAudit(std::int64_t after_id,
@@ -745,6 +753,25 @@ class SqlStore final : public Store {
     c.Execute("INSERT INTO fingertips(" FRICTIOND_FINGERTIP_COLUMNS
               ") VALUES($1,$1,'',$2) ON CONFLICT(id) DO NOTHING",
               Params().Text(id).Text(now));
+  }
+
+  /// Inserts an audit entry stamped `now`. @return its id.
+  static std::int64_t InsertAudit(Connection& c,
+                                  const AuditEntry& e,
+                                  const std::string& now) {
+    return c
+        .Execute(
+            "INSERT INTO audit(at,actor,role,remote,action,material,detail) "
+            "VALUES($1,$2,$3,$4,$5,$6,$7) RETURNING id",
+            Params()
+                .Text(now)
+                .Text(e.actor)
+                .Text(e.role)
+                .Text(e.remote)
+                .Text(e.action)
+                .Text(e.material)
+                .Text(e.detail))
+        .Int(0, 0);
   }
 
   /// Appends version newest + 1 of the pair. The material's row lock

@@ -6,10 +6,12 @@
 #include <filesystem>
 #include <mutex>
 #include <set>
+#include <stdexcept>
 #include <string>
 #include <thread>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 #include <unistd.h>
 
 #include "frictiond/testing/pg_server.h"
@@ -173,6 +175,43 @@ TEST_P(StoreTest, UploadsAppendVersionsNeverOverwrite) {
   EXPECT_TRUE(store_->DeleteMaterial("felt"));
   EXPECT_FALSE(store_->GetLatestModel("felt", "default"));
   EXPECT_FALSE(store_->GetStroke(c1.stroke_id));
+}
+
+TEST_P(StoreTest, UploadCommitsItsAuditEntryWithIt) {
+  StrokeRecord s;
+  s.material = "felt";
+  s.samples = 1;
+  s.csv = "t_s,fn_n,ft_n,v_mm_s\n0,1,1,0\n";
+  AuditEntry e;
+  e.actor = "tok_1";
+  e.role = "robot";
+  e.remote = "127.0.0.1";
+  e.action = "POST /v1/materials/{id}/strokes";
+  e.material = "felt";
+  e.detail = R"({"status":201,"samples":1})";
+  const UploadCommit c = store_->CommitUpload(s, Model("felt", "{}"), &e);
+  const auto log = store_->ListAudit(0, 100, "felt");
+  ASSERT_EQ(log.size(), 1u);
+  EXPECT_EQ(log[0].actor, "tok_1");
+  EXPECT_EQ(log[0].action, e.action);
+  EXPECT_FALSE(log[0].at.empty());
+  const auto d = nlohmann::json::parse(log[0].detail);
+  EXPECT_EQ(d["status"], 201);
+  EXPECT_EQ(d["samples"], 1);
+  EXPECT_EQ(d["stroke_id"], c.stroke_id);
+  EXPECT_EQ(d["version"], c.version);
+  EXPECT_EQ(d["material_created"], true);
+  // A detail that is not a JSON object is refused before anything is
+  // written: no stroke, no version, no entry.
+  e.detail = "[1]";
+  EXPECT_THROW(store_->CommitUpload(s, Model("felt", "{}"), &e),
+               std::invalid_argument);
+  EXPECT_EQ(store_->ListStrokes("felt", "default").size(), 1u);
+  EXPECT_EQ(store_->ListModels("felt", "default").size(), 1u);
+  EXPECT_EQ(store_->ListAudit(0, 100, "felt").size(), 1u);
+  // Without an entry nothing is logged.
+  store_->CommitUpload(s, Model("felt", "{}"));
+  EXPECT_EQ(store_->ListAudit(0, 100, "felt").size(), 1u);
 }
 
 TEST_P(StoreTest, StrokesAfterAnIdComeInOneListOldestFirst) {

@@ -117,6 +117,13 @@ class Authenticator {
   std::map<std::string, Cached> cache_;  // by hash; valid tokens only
 };
 
+/// The audit entry of an admitted write (request.audit_action set by
+/// Authorize): actor, role, remote address, action, the material of a
+/// /v1/materials/{id} route (else detail "target" = the first capture) and
+/// detail {"status": status}. The observer adds reply fields; a handler
+/// that commits the entry with its write passes it to the library.
+AuditEntry HttpAuditEntry(const HttpRequest& request, int status);
+
 /// POST/GET /v1/tokens, DELETE /v1/tokens/{id}, GET /v1/audit.
 void RegisterAuthRoutes(HttpServer& http, Authenticator& auth, Store& store);
 

@@ -53,6 +53,11 @@ struct HttpRequest {
   /// id and role; both empty for an anonymous (or unchecked) request.
   std::string actor;
   std::string role;
+  /// Set by the authorizer when a successful (2xx) answer to this request
+  /// is audited: the entry's action, "METHOD /pattern"; empty otherwise.
+  /// A handler that stores the audit entry with its own write (in one
+  /// transaction) sets HttpResponse::audit_committed.
+  std::string audit_action;
 
   /// First value of a query parameter.
   std::optional<std::string> Query(const std::string& name) const;
@@ -72,6 +77,9 @@ struct HttpResponse {
   std::string content_type = "application/json";
   std::string body;
   std::multimap<std::string, std::string> headers;
+  /// The handler committed this write's audit entry with the write itself
+  /// (HttpRequest::audit_action); the observer must not append another.
+  bool audit_committed = false;
 
   static HttpResponse Json(int status, const nlohmann::json& body);
   /// Body already serialised as JSON.

@@ -87,6 +87,12 @@ struct IngestOptions {
   /// Slip labelling; when unset, the pair's previous labelling (or the
   /// defaults) is used.
   std::optional<SlipLabelOptions> labelling;
+  /// Who made the upload (actor, role, remote, action, material, detail):
+  /// when set, the entry is stored in the upload's own transaction
+  /// (Store::CommitUpload), with `fingertip`, `samples`, `fit_status`,
+  /// `stroke_id`, `version` and `material_created` added to its detail.
+  /// Nothing is logged for an upload that is refused.
+  std::optional<AuditEntry> audit;
 };
 
 /// Service options.

@@ -153,9 +153,18 @@ class Store {
   /// Stores a stroke and the model refitted with it as one transaction,
   /// creating the material (name = id) if it does not exist. The model's
   /// version is the pair's newest + 1. Any identification job of the pair
-  /// moves to `fitted`.
+  /// moves to `fitted`. When `audit` is not null, its entry is appended in
+  /// the same transaction (one flush per upload; after kill -9 the log holds
+  /// an entry exactly for each stored upload), with `stroke_id`, `version`
+  /// and `material_created` added to its detail (a JSON object; "" = {}).
   virtual UploadCommit CommitUpload(const StrokeRecord& stroke,
-                                    const ModelRecord& model) = 0;
+                                    const ModelRecord& model,
+                                    const AuditEntry* audit) = 0;
+  /// CommitUpload without an audit entry.
+  UploadCommit CommitUpload(const StrokeRecord& stroke,
+                            const ModelRecord& model) {
+    return CommitUpload(stroke, model, nullptr);
+  }
   /// Appends a model version (e.g. an extended model found by diagnosis).
   /// @return the new version.
   virtual int AddModelVersion(const ModelRecord& model) = 0;
