@@ -21,6 +21,7 @@
 #include <sqlite3.h>
 
 #include "frictiond/estimators/stroke_csv.h"
+#include "frictiond/storage/store.h"
 #include "frictiond/testing/daemon_process.h"
 #include "frictiond/testing/stroke_simulator.h"
 
@@ -250,6 +251,33 @@ TEST(CrashSafetyTest, AcknowledgedUploadsSurviveSigkill) {
   const ExitStatus s = daemon.Stop(SIGTERM);
   EXPECT_TRUE(s.exited && s.code == 0) << s.ToString();
   ExpectIntact(options.db, dir.path() + "/copy");
+
+  // The audit log has an entry for exactly the strokes that were stored:
+  // an upload and its entry commit together, so a kill cannot keep one
+  // without the other (acknowledged or not).
+  {
+    auto store = OpenStore(options.db);
+    for (const char* m : kMaterials) {
+      std::set<std::int64_t> stored, audited;
+      for (const StrokeRecord& st : store->ListStrokes(m, "default"))
+        stored.insert(st.id);
+      for (std::int64_t after = 0;;) {
+        const std::vector<AuditEntry> page = store->ListAudit(after, 1000, m);
+        if (page.empty()) break;
+        after = page.back().id;
+        for (const AuditEntry& e : page) {
+          if (e.action != "POST /v1/materials/{id}/strokes") continue;
+          EXPECT_TRUE(
+              audited
+                  .insert(
+                      json::parse(e.detail).at("stroke_id").get<std::int64_t>())
+                  .second)
+              << e.detail;
+        }
+      }
+      EXPECT_EQ(stored, audited) << m;
+    }
+  }
 
   // Acknowledged stroke ids are distinct; versions rise per material.
   std::set<std::int64_t> ids;
