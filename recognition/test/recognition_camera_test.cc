@@ -65,7 +65,7 @@ TEST(RecognitionCameraTest, HeldOutMaterialsUnderRandomCameraChanges) {
   std::printf(
       "| score threshold | accepted and right | false accepts |\n"
       "|---|---|---|\n");
-  for (double p : {0.05, 0.2, 0.4, 0.5, 0.6, 0.7, 0.74, 0.8, 0.9, 0.95}) {
+  for (double p : {0.05, 0.2, 0.4, 0.5, 0.6, 0.62, 0.7, 0.8, 0.9, 0.95}) {
     int known = 0, right = 0, unknown = 0, accepted = 0;
     for (const Outcome& o : outcomes) {
       if (o.known) {
@@ -93,20 +93,19 @@ TEST(RecognitionCameraTest, HeldOutMaterialsUnderRandomCameraChanges) {
       all.AcceptedWrong(),
       all.FalseAccept(),
       brier);
-  // Measured with this seed (feature version 3, evaluated once):
-  // top-1 0.931, accepted and right 0.803, accepted wrong 0.008, false
-  // accepts 0.058 (12 of 208), Brier 0.076 (docs/recognition.md). The
-  // issue's goal (accepted and right >= 0.90 with false accepts <= 0.05) is
-  // NOT met: accepted-and-right is short of it and false accepts exceed it
-  // (the operating point was set for 3 % on the tuning views, which gave
-  // 2.9 % there). The false-accept bound was 0.055 for version 2 and is
-  // 0.075 now, looser, so that the test guards against regressions of this
-  // measurement; the other bounds are stricter than before.
-  EXPECT_GE(all.Top1(), 0.89);
-  EXPECT_GE(all.AcceptedRight(), 0.75);
-  EXPECT_LE(all.FalseAccept(), 0.075);
+  // Measured with this seed (feature version 4, evaluated once, after
+  // every choice was made on the tuning views): top-1 0.958, accepted and
+  // right 0.886, accepted wrong 0.006, false accepts 0.019 (4 of 208),
+  // Brier 0.047 (docs/recognition.md; version 3: 0.931, 0.803, 0.008,
+  // 0.058, 0.076). The false-accept goal (<= 0.05) is met; the
+  // accepted-and-right goal (>= 0.90) is NOT (0.886). The bounds sit under
+  // the measurement so that the test guards against regressions; the false
+  // accepts are held to the goal.
+  EXPECT_GE(all.Top1(), 0.93);
+  EXPECT_GE(all.AcceptedRight(), 0.85);
+  EXPECT_LE(all.FalseAccept(), 0.05);
   EXPECT_LE(all.AcceptedWrong(), 0.02);
-  EXPECT_LE(brier, 0.10);
+  EXPECT_LE(brier, 0.07);
 }
 
 }  // namespace

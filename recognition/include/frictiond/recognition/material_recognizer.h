@@ -98,12 +98,12 @@ struct RecognitionResult {
 struct RecognizerOptions {
   /// Slope of the score calibration [1/similarity] (Platt scaling), fitted on
   /// the tuning views of recognition/test/recognition_calibration_test.cc.
-  static constexpr double kCalibrationSlope = 35.29;
+  static constexpr double kCalibrationSlope = 51.15;
   /// Similarity at which the calibrated score is 0.5.
-  static constexpr double kCalibrationMidpoint = 0.9365;
+  static constexpr double kCalibrationMidpoint = 0.9574;
   /// Default operating point: the calibrated score at which at most 3 % of
   /// the tuning views of materials not in the library were accepted.
-  static constexpr double kDefaultOperatingPoint = 0.74;
+  static constexpr double kDefaultOperatingPoint = 0.62;
 
   /// The operating point: a query whose best calibrated score is below this
   /// is unknown. Must be in [0, 1].
@@ -164,7 +164,7 @@ class MaterialRecognizer {
   /// Version of the feature layout and extraction method. Persisted feature
   /// vectors must be discarded (and recomputed from the images) when it
   /// changes.
-  static constexpr int kFeatureVersion = 3;
+  static constexpr int kFeatureVersion = 4;
 
   /// Decodes `encoded_image` and registers it as a reference for
   /// `material_id`. A material may have any number of references; several
