@@ -31,6 +31,7 @@ using internal::FeatureBlock;
 
 struct Sample {
   int material = -1;  ///< index into the known list, -1: open set
+  unsigned changes = 0;
   std::vector<float> query;
 };
 
@@ -63,6 +64,7 @@ Data Render(unsigned seed, int views_per_material) {
         const CameraView view = RenderCameraView(pattern, rng, 0.5);
         Sample s;
         s.material = side == 0 ? static_cast<int>(m) : -1 - static_cast<int>(m);
+        s.changes = view.changes;
         s.query = internal::ComputeFeatures(
             internal::DecodeImage(view.encoded, 32, 40'000'000));
         d.views.push_back(std::move(s));
@@ -77,8 +79,10 @@ double Env(const char* name, double fallback) {
   return v ? std::atof(v) : fallback;
 }
 
-/// Per-block distances of two single-scale vectors (histogram intersection
-/// distance; colour: clamped tolerance distance).
+/// Per-block distances of two single-scale vectors, as CalcSimilarity
+/// (image_features.cc) computes them: histogram intersection distance, and
+/// for the mean colour the excess beyond the lamp-axis ellipse (tolerances
+/// overridable with X_ALONG, X_ACROSS, X_RANGE).
 void Distances(const float* a, const float* b, double* out) {
   int k = 0;
   for (const FeatureBlock& block : internal::FeatureLayout()) {
@@ -88,8 +92,18 @@ void Distances(const float* a, const float* b, double* out) {
         inter += std::min(double{a[i]} * a[i], double{b[i]} * b[i]);
       out[k] = std::clamp(1.0 - inter, 0.0, 1.0);
     } else {
-      const double d = std::hypot(double{a[0]} - b[0], double{a[1]} - b[1]);
-      out[k] = std::clamp((d - 0.35) / 0.5, 0.0, 1.0);
+      static const double along_tol = Env("X_ALONG", 0.35);
+      static const double across_tol = Env("X_ACROSS", 0.15);
+      static const double range = Env("X_RANGE", 0.5);
+      // Lamp axis: log(R/G) and log(B/G) move in opposite directions.
+      const double dr = double{a[0]} - b[0], db = double{a[1]} - b[1];
+      const double along = std::abs(dr - db) / std::sqrt(2.0);
+      const double across = std::abs(dr + db) / std::sqrt(2.0);
+      // Elliptical tolerance; beyond it, the excess in units of the along
+      // tolerance (equal tolerances: the isotropic rule).
+      const double r = std::hypot(along / along_tol, across / across_tol);
+      const double d = std::max(0.0, r - 1.0) * along_tol;
+      out[k] = std::clamp(d / range, 0.0, 1.0);
     }
     a += block.size;
     b += block.size;
@@ -116,6 +130,17 @@ struct Matcher {
     std::vector<std::pair<double, int>> cs(cells);
     std::vector<int> kept(cells);
     std::vector<float> trimmed(per);
+    static const int self_select = static_cast<int>(Env("SELF", 0));
+    if (self_select) {
+      // Reference-independent: keep the cells most like the query's whole.
+      for (int c = 0; c < cells; ++c)
+        cs[c] = {Sim(query + per + c * per, query), c};
+      std::sort(cs.begin(), cs.end(), [](auto& a, auto& b) {
+        return a.first > b.first || (a.first == b.first && a.second < b.second);
+      });
+      for (int c = 0; c < keep; ++c) kept[c] = cs[c].second;
+      internal::AggregateCells(query + per, kept.data(), keep, trimmed.data());
+    }
     for (std::size_t r = 0; r < data.refs.size(); ++r) {
       const float* ref = data.refs[r].data();
       double whole = -1e9;
@@ -125,7 +150,10 @@ struct Matcher {
         if (s > whole) whole = s, bs = k;
       }
       double sim = whole;
-      if (keep < cells) {
+      if (self_select) {
+        for (int k = 0; k < scales; ++k)
+          sim = std::max(sim, Sim(trimmed.data(), ref + k * per));
+      } else if (keep < cells) {
         for (int c = 0; c < cells; ++c)
           cs[c] = {Sim(query + per + c * per, ref + bs * per), c};
         std::sort(cs.begin(), cs.end(), [](auto& a, auto& b) {
@@ -232,12 +260,56 @@ TEST(RecognitionTuning, Experiments) {
     for (double v : base.w) sum += v;
     for (double& v : base.w) v /= sum;
   }
-  base.keep = static_cast<int>(Env("KEEP", 12));
+  base.keep = static_cast<int>(Env("KEEP", 10));
   // Evidence variants over the sorted similarities.
   auto sorted = [](std::vector<double> v) {
     std::sort(v.rbegin(), v.rend());
     return v;
   };
+  if (Env("DIAG", 0) > 0) {
+    const MaterialSplit split = TuningSplit();
+    const std::size_t n = internal::ScaleFeatureSize();
+    for (std::size_t r = 0; r < sets[0].refs.size(); ++r) {
+      const float* u = sets[0].refs[r].data() + internal::UnitScaleIndex() * n;
+      std::printf("ref %s: log R/G %.3f log B/G %.3f\n",
+                  split.known[sets[0].ref_material[r]].c_str(),
+                  u[n - 2],
+                  u[n - 1]);
+    }
+    for (std::size_t i = 0; i < sets.size(); ++i) {
+      const auto rows = MatchAll(sets[i], base);
+      std::vector<double> open;
+      for (const Row& r : rows)
+        if (r.truth < 0) open.push_back(Margin(r.sims, 1.0));
+      std::sort(open.begin(), open.end());
+      const double t =
+          open[open.size() - 1 - static_cast<std::size_t>(0.03 * open.size())];
+      for (std::size_t v = 0; v < rows.size(); ++v) {
+        const Row& r = rows[v];
+        const int arg = static_cast<int>(
+            std::max_element(r.sims.begin(), r.sims.end()) - r.sims.begin());
+        const double e = Margin(r.sims, 1.0);
+        const bool accepted = e > t;
+        if (r.truth < 0 && !accepted) continue;
+        if (r.truth >= 0 && accepted && arg == r.truth) continue;
+        std::string ch;
+        for (int c = 0; c < kChangeCount; ++c)
+          if ((sets[i].views[v].changes >> c) & 1u)
+            ch += std::string(ChangeName(c)).substr(0, 5) + ",";
+        std::printf(
+            "set %zu %s %s -> %s e %.4f (t %.4f) s1 %.3f [%s]\n",
+            i,
+            r.truth < 0 ? "OPEN" : (arg == r.truth ? "REJECTED" : "WRONG"),
+            (r.truth < 0 ? split.unknown[-1 - r.truth] : split.known[r.truth])
+                .c_str(),
+            split.known[arg].c_str(),
+            e,
+            t,
+            r.sims[arg],
+            ch.c_str());
+      }
+    }
+  }
   const double temp = Env("TEMP", 0.01);
   for (int h = 0; h < 3; ++h) {
     g_half = h;
