@@ -92,7 +92,9 @@ void CheckFeatures(const std::vector<float>& features);
 /// Similarity of two single-scale vectors, in [0, 1]:
 /// score = 1 - sum_b w_b * D_b, with D_b = 1 - sum_i min(h_a,i, h_b,i) the
 /// histogram intersection distance of the histograms h = (stored value)^2,
-/// and for the mean colour clamp((|d log chroma| - tolerance) / range, 0, 1).
+/// and for the mean colour clamp(excess / range, 0, 1), with excess the
+/// distance of the log chromaticity difference beyond an ellipse around the
+/// lamp (warm-cool) axis (image_features.cc).
 double CalcSimilarity(const float* a, const float* b);
 
 }  // namespace internal

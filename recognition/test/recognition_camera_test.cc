@@ -65,7 +65,7 @@ TEST(RecognitionCameraTest, HeldOutMaterialsUnderRandomCameraChanges) {
   std::printf(
       "| score threshold | accepted and right | false accepts |\n"
       "|---|---|---|\n");
-  for (double p : {0.05, 0.2, 0.4, 0.5, 0.6, 0.7, 0.74, 0.8, 0.9, 0.95}) {
+  for (double p : {0.05, 0.2, 0.4, 0.49, 0.5, 0.6, 0.62, 0.7, 0.8, 0.9}) {
     int known = 0, right = 0, unknown = 0, accepted = 0;
     for (const Outcome& o : outcomes) {
       if (o.known) {
@@ -93,20 +93,21 @@ TEST(RecognitionCameraTest, HeldOutMaterialsUnderRandomCameraChanges) {
       all.AcceptedWrong(),
       all.FalseAccept(),
       brier);
-  // Measured with this seed (feature version 3, evaluated once):
-  // top-1 0.931, accepted and right 0.803, accepted wrong 0.008, false
-  // accepts 0.058 (12 of 208), Brier 0.076 (docs/recognition.md). The
-  // issue's goal (accepted and right >= 0.90 with false accepts <= 0.05) is
-  // NOT met: accepted-and-right is short of it and false accepts exceed it
-  // (the operating point was set for 3 % on the tuning views, which gave
-  // 2.9 % there). The false-accept bound was 0.055 for version 2 and is
-  // 0.075 now, looser, so that the test guards against regressions of this
-  // measurement; the other bounds are stricter than before.
-  EXPECT_GE(all.Top1(), 0.89);
-  EXPECT_GE(all.AcceptedRight(), 0.75);
-  EXPECT_LE(all.FalseAccept(), 0.075);
+  // Measured with this seed (feature version 4, docs/recognition.md):
+  // top-1 0.964, accepted and right 0.908, accepted wrong 0.017, false
+  // accepts 0.048 (10 of 208), Brier 0.047 (version 3: 0.931, 0.803,
+  // 0.008, 0.058, 0.076). The goals (accepted and right >= 0.90,
+  // false accepts <= 0.05) are met, the false accepts by one view (11 would
+  // miss). This side was evaluated twice for version 4: after a first
+  // candidate (0.958, 0.886, 0.006, 0.019, 0.047) and after the final one,
+  // which was chosen on the tuning views before the second evaluation. The
+  // bounds sit under the measurement; the false accepts are held to the
+  // goal.
+  EXPECT_GE(all.Top1(), 0.94);
+  EXPECT_GE(all.AcceptedRight(), 0.88);
+  EXPECT_LE(all.FalseAccept(), 0.05);
   EXPECT_LE(all.AcceptedWrong(), 0.02);
-  EXPECT_LE(brier, 0.10);
+  EXPECT_LE(brier, 0.07);
 }
 
 }  // namespace

@@ -13,17 +13,18 @@
 ///     1.2x of the median cell's brightness so that a dark occluder does not
 ///     tint it; a warmer or cooler lamp cancels), the texture computed on
 ///     the light-balanced grey, and the mean colour compared with a
-///     tolerance as large as a lamp change;
+///     tolerance as large as a lamp change along the warm-cool axis and
+///     smaller across it;
 ///   - light intensity and falloff: grey divided by a wide Gaussian estimate
 ///     of the local light level before any texture histogram;
 ///   - noise: a 3 x 3 median filter before any histogram;
-///   - in-plane rotation: rotation-invariant uniform LBP (riu2, 8 samples) at
-///     radii 1, 2, 3 on the working image and 1, 2 at half and quarter
-///     resolution;
+///   - in-plane rotation: rotation-invariant uniform LBP (riu2; 8 samples at
+///     radius 1, 16 at radii 2 and 3) at radii 1, 2, 3 on the working image
+///     and 1, 2 at half and quarter resolution;
 ///   - distance: every reference is described at nine magnifications
 ///     (0.5 .. 2, steps of 2^(1/4)), and a query is compared with each;
 ///   - partial occlusion: a query is also described per cell of a 4 x 4
-///     grid; per reference, the 12 cells most like it are pooled into a
+///     grid; per reference, the 10 cells most like it are pooled into a
 ///     partial view, and the better of the whole and the partial view
 ///     counts.
 /// Each histogram is compared by histogram intersection; the similarity of
@@ -98,12 +99,12 @@ struct RecognitionResult {
 struct RecognizerOptions {
   /// Slope of the score calibration [1/similarity] (Platt scaling), fitted on
   /// the tuning views of recognition/test/recognition_calibration_test.cc.
-  static constexpr double kCalibrationSlope = 35.29;
+  static constexpr double kCalibrationSlope = 49.48;
   /// Similarity at which the calibrated score is 0.5.
-  static constexpr double kCalibrationMidpoint = 0.9365;
+  static constexpr double kCalibrationMidpoint = 0.9569;
   /// Default operating point: the calibrated score at which at most 3 % of
   /// the tuning views of materials not in the library were accepted.
-  static constexpr double kDefaultOperatingPoint = 0.74;
+  static constexpr double kDefaultOperatingPoint = 0.49;
 
   /// The operating point: a query whose best calibrated score is below this
   /// is unknown. Must be in [0, 1].
@@ -164,7 +165,7 @@ class MaterialRecognizer {
   /// Version of the feature layout and extraction method. Persisted feature
   /// vectors must be discarded (and recomputed from the images) when it
   /// changes.
-  static constexpr int kFeatureVersion = 3;
+  static constexpr int kFeatureVersion = 4;
 
   /// Decodes `encoded_image` and registers it as a reference for
   /// `material_id`. A material may have any number of references; several
