@@ -30,7 +30,7 @@ struct DiagnoseArgs {
   std::string report;
   double slip_peak_mm_s = 0.0;
   double slip_floor_mm_s = 0.0;
-  int folds = 5;
+  int folds = 10;
   int inner_folds = 5;
   bool shuffle_folds = false;
   std::uint64_t seed = 0;
