@@ -4,7 +4,7 @@
 // temperature effect (tests/testing planted_effects, 240 strokes, seed 5),
 // default options (issue 18): nested blocked cross-validation, i.e. the
 // greedy selection (every candidate expansion, interactions, inner 5-fold
-// CV) run once on all strokes and once per outer fold (5, in parallel on
+// CV) run once on all strokes and once per outer fold (10, in parallel on
 // up to hardware_concurrency threads), outer tests of the findings, the
 // spread scan, replay of Coulomb/linear/extended.
 // Median wall time of 3 runs (labelling and derived features are prepared

@@ -128,7 +128,7 @@ int Main(int argc, char** argv) {
     const double parse = SecondsSince(t0);
     t0 = Clock::now();
     EnsureLabels(&d, SlipLabelOptions{});
-    AddDerivedFeatures(&d, SlipLabelOptions{}.gap_factor);
+    AddDerivedFeatures(&d, SlipLabelOptions{});
     const double label = SecondsSince(t0);
     t0 = Clock::now();
     const StochasticFit fit = FitStochasticModel(d, StochasticFitOptions{});

@@ -30,7 +30,7 @@ struct DiagnoseArgs {
   std::string report;
   double slip_peak_mm_s = 0.0;
   double slip_floor_mm_s = 0.0;
-  int folds = 5;
+  int folds = 10;
   int inner_folds = 5;
   bool shuffle_folds = false;
   std::uint64_t seed = 0;
@@ -274,6 +274,9 @@ void WriteReport(const std::string& path,
   });
   for (const CandidateTest& t : step0) {
     if (top.size() >= 4) break;
+    // Only causes with an axis to plot against (a product column x*y is
+    // computed inside Diagnose, not in this copy of the data).
+    if (t.kind != "regime" && !data.Column(t.cause)) continue;
     if (seen.insert(t.cause + "/" + t.kind).second)
       top.push_back({t.cause, t.kind});
   }

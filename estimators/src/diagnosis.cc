@@ -99,7 +99,7 @@ const char* ToString(DiagnosisStatus status) {
 StrokeData PrepareDiagnosisData(StrokeData data,
                                 const SlipLabelOptions& labelling) {
   EnsureLabels(&data, labelling);
-  AddDerivedFeatures(&data, labelling.gap_factor);
+  AddDerivedFeatures(&data, labelling);
   return data;
 }
 
@@ -193,7 +193,7 @@ DiagnosisResult Diagnose(const StrokeData& input,
     has_derived = has_derived && input.FindCovariate(name);
   if (input.slip.size() != input.size() || input.stroke.size() != input.size())
     EnsureLabels(&data, options.labelling);
-  if (!has_derived) AddDerivedFeatures(&data, options.labelling.gap_factor);
+  if (!has_derived) AddDerivedFeatures(&data, options.labelling);
 
   DiagnosisResult result;
   result.samples = static_cast<int>(data.size());

@@ -325,7 +325,13 @@ const std::vector<std::string>& DerivedFeatureNames() {
   return kNames;
 }
 
-void AddDerivedFeatures(StrokeData* data, double gap_factor) {
+namespace {
+
+// AddDerivedFeatures; `moving` (optional, one flag per sample) marks
+// samples that are not rest although they are not labelled slip.
+void AddDerivedFeaturesImpl(StrokeData* data,
+                            double gap_factor,
+                            const std::vector<unsigned char>* moving) {
   const std::size_t n = data->size();
   const auto& t = data->t_s;
   const auto& v = data->v_mm_s;
@@ -347,6 +353,9 @@ void AddDerivedFeatures(StrokeData* data, double gap_factor) {
     const bool prev_s = have_slip && i > 0 && slip[i - 1] == 1;
     if (s && !prev_s) current_dwell = t[i] - rest_start;  // episode begins
     if (!s && prev_s) rest_start = t[i];                  // rest begins
+    // Motion without slip (a run above the floor that never reached the
+    // peak): the rest begins after it.
+    if (!s && moving && (*moving)[i]) rest_start = t[i];
     dwell[i] = s ? current_dwell : t[i] - rest_start;
     // Derivatives: central, one-sided across gaps and at ends.
     const bool has_prev = i > 0 && !gap[i];
@@ -373,6 +382,29 @@ void AddDerivedFeatures(StrokeData* data, double gap_factor) {
       data->covariates.push_back(std::move(cols[k]));
     }
   }
+}
+
+}  // namespace
+
+void AddDerivedFeatures(StrokeData* data, double gap_factor) {
+  AddDerivedFeaturesImpl(data, gap_factor, nullptr);
+}
+
+void AddDerivedFeatures(StrokeData* data, const SlipLabelOptions& labelling) {
+  std::vector<unsigned char> moving;
+  if (labelling.floor_mm_s > 0 && data->size() > 0) {
+    // The labeller's test of motion: median-filtered speed above the floor.
+    const double dt = CalcMedianDt(data->t_s);
+    int kernel = 1;
+    if (dt > 0 && labelling.median_window_s > 0)
+      kernel = static_cast<int>(std::lround(labelling.median_window_s / dt));
+    const double thresholds[1] = {labelling.floor_mm_s};
+    std::vector<unsigned char> above[1];
+    MedianAboveEach(data->v_mm_s, kernel, thresholds, above);
+    moving = std::move(above[0]);
+  }
+  AddDerivedFeaturesImpl(
+      data, labelling.gap_factor, moving.empty() ? nullptr : &moving);
 }
 
 }  // namespace frictiond

@@ -162,7 +162,7 @@ TEST(DiagnosisTest, PlantedEffectKindsAndTerms) {
               1e-9 + std::fabs(temp.selection_bias_pct));
   EXPECT_GE(temp.findings[0].folds_selected, 1);
   EXPECT_LE(temp.findings[0].folds_selected, temp.folds);
-  EXPECT_EQ(temp.folds, 5);
+  EXPECT_EQ(temp.folds, 10);
   EXPECT_EQ(temp.inner_folds, 5);
 }
 

@@ -137,6 +137,39 @@ TEST(MedianFilter, SegmentStrokesAfterEpisodesAndGaps) {
   EXPECT_THROW(SegmentStrokes(d, slip, 3.0), std::invalid_argument);
 }
 
+// dwell_s: with the labelling options, a run above the floor that never
+// reaches the peak (motion without slip) ends the rest; without them only
+// slip labels do. 100 Hz: slip 0.1-0.2 s, sub-threshold motion 0.5-0.7 s
+// (6 mm/s: above the 5 mm/s floor, below the 10 mm/s peak), slip from
+// 1.0 s.
+TEST(MedianFilter, DwellEndsAtMotionWithoutSlip) {
+  StrokeData d;
+  for (int i = 0; i < 130; ++i) {
+    d.t_s.push_back(0.01 * i);
+    d.fn_n.push_back(2.0);
+    d.ft_n.push_back(1.0);
+    const bool slipping = (i >= 10 && i < 20) || i >= 100;
+    d.v_mm_s.push_back(slipping ? 20.0 : (i >= 50 && i < 70) ? 6.0 : 0.0);
+  }
+  SlipLabelOptions o;
+  o.peak_mm_s = 10.0;
+  o.floor_mm_s = 5.0;
+  o.median_window_s = 0.0;
+  EnsureLabels(&d, o);
+  ASSERT_EQ(d.slip[50], 0);  // the sub-threshold run is not slip
+  ASSERT_EQ(d.slip[100], 1);
+  StrokeData by_labels = d;
+  AddDerivedFeatures(&by_labels, o.gap_factor);
+  AddDerivedFeatures(&d, o);
+  const std::vector<double>& old_dwell = *by_labels.Column("dwell_s");
+  const std::vector<double>& dwell = *d.Column("dwell_s");
+  EXPECT_NEAR(old_dwell[100], 0.8, 1e-9);  // from the end of the first slip
+  EXPECT_NEAR(dwell[100], 0.31, 1e-9);     // from the end of the motion
+  EXPECT_NEAR(dwell[120], 0.31, 1e-9);     // held through the episode
+  EXPECT_NEAR(dwell[60], 0.0, 1e-9);       // moving: no rest yet
+  EXPECT_NEAR(dwell[40], old_dwell[40], 1e-12);  // before it: unchanged
+}
+
 TEST(MedianFilter, RemovesIsolatedSpikes) {
   std::vector<double> v(50, 20.0);
   v[10] = 500.0;

@@ -23,7 +23,7 @@ std::string Key(const std::string& material, const std::string& fingertip) {
 
 void PrepareUpload(StrokeData* data, const SlipLabelOptions& labelling) {
   EnsureLabels(data, labelling);
-  AddDerivedFeatures(data, labelling.gap_factor);
+  AddDerivedFeatures(data, labelling);
 }
 
 std::vector<std::size_t> SelectFitUploads(

@@ -93,11 +93,16 @@ const std::vector<std::string>& DerivedFeatureNames();
 /// - distance_mm: cumulative sliding distance, trapezoidal integral of v
 ///   (no sliding is assumed across time gaps);
 /// - dwell_s: length of the rest before the current slip episode began
-///   (inside rest: the rest elapsed so far; gaps count as rest);
+///   (inside rest: the rest elapsed so far; gaps count as rest). With
+///   `labelling`, rest ends also at motion without slip: samples whose
+///   median-filtered speed exceeds labelling.floor_mm_s (a run above the
+///   floor that never reaches the peak, which LabelSlip leaves unlabelled);
+///   without it, at slip labels only;
 /// - time_s: time since the first sample;
 /// - accel_mm_s2, fn_rate_n_s: central differences of v and fn (one-sided at
 ///   ends and gaps).
 /// Requires data.slip to be filled (EnsureLabels).
 void AddDerivedFeatures(StrokeData* data, double gap_factor = 10.0);
+void AddDerivedFeatures(StrokeData* data, const SlipLabelOptions& labelling);
 
 }  // namespace frictiond
