@@ -211,6 +211,14 @@ std::vector<unsigned char> CalcGaps(const std::vector<double>& t_s,
   return CalcGaps(t_s, CalcMedianDt(t_s), gap_factor);
 }
 
+// Samples in the labeller's median filter of the speed (at least 1); dt is
+// the median sampling interval.
+int MedianKernel(double dt, const SlipLabelOptions& options) {
+  if (dt > 0 && options.median_window_s > 0)
+    return static_cast<int>(std::lround(options.median_window_s / dt));
+  return 1;
+}
+
 // LabelSlip with the median interval and the gaps already known.
 std::vector<int> LabelSlip(const StrokeData& data,
                            const SlipLabelOptions& options,
@@ -219,9 +227,7 @@ std::vector<int> LabelSlip(const StrokeData& data,
   const std::size_t n = data.size();
   std::vector<int> slip(n, 0);
   if (n == 0) return slip;
-  int kernel = 1;
-  if (dt > 0 && options.median_window_s > 0)
-    kernel = static_cast<int>(std::lround(options.median_window_s / dt));
+  const int kernel = MedianKernel(dt, options);
   // The rule only compares the filtered speed with the two thresholds:
   // counts replace the filter (CalcMedianAbove).
   const double thresholds[2] = {options.floor_mm_s, options.peak_mm_s};
@@ -394,14 +400,9 @@ void AddDerivedFeatures(StrokeData* data, const SlipLabelOptions& labelling) {
   std::vector<unsigned char> moving;
   if (labelling.floor_mm_s > 0 && data->size() > 0) {
     // The labeller's test of motion: median-filtered speed above the floor.
-    const double dt = CalcMedianDt(data->t_s);
-    int kernel = 1;
-    if (dt > 0 && labelling.median_window_s > 0)
-      kernel = static_cast<int>(std::lround(labelling.median_window_s / dt));
-    const double thresholds[1] = {labelling.floor_mm_s};
-    std::vector<unsigned char> above[1];
-    MedianAboveEach(data->v_mm_s, kernel, thresholds, above);
-    moving = std::move(above[0]);
+    moving = CalcMedianAbove(data->v_mm_s,
+                             MedianKernel(CalcMedianDt(data->t_s), labelling),
+                             labelling.floor_mm_s);
   }
   AddDerivedFeaturesImpl(
       data, labelling.gap_factor, moving.empty() ? nullptr : &moving);
