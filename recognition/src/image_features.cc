@@ -35,18 +35,16 @@ constexpr double kMinChannelSum = 30.0;
 /// within an ellipse around the lamp axis: a warmer or cooler lamp (a
 /// diagonal, von Kries gain R x (1 -+ t), B x (1 +- t)) moves them mostly
 /// along (-1, 1) / sqrt(2) (by up to ~0.44 for t = 0.3) and little across
-/// it (~0.07). The tolerance is kColourTolerance along the axis and
-/// kColourAcrossTolerance across it; the penalty then grows with the excess
-/// (in units of the along tolerance) and saturates kColourRange further on.
+/// it (~0.07). The tolerance is ColourTolerance::along (0.35) along the
+/// axis and ColourTolerance::across (0.15) across it; the penalty then grows
+/// with the excess (in units of the along tolerance) and saturates
+/// ColourTolerance::range (0.5) further on (image_features.h).
 /// (Tuning views, version 4, mean accepted-and-right over 2-6 % false
 /// accepts, seeds 101 / 102: isotropic 0.35 0.90 / 0.85; across 0.15
 /// 0.94 / 0.90; across 0.10 0.95 / 0.91; along 0.45 0.94 / 0.90. 0.15 was
 /// kept as the less tight of the two close results. In version 3, an
 /// across tolerance of 0.15 was tried with a box-shaped rule and not kept,
 /// see docs/recognition.md.)
-constexpr double kColourTolerance = 0.35;
-constexpr double kColourAcrossTolerance = 0.15;
-constexpr double kColourRange = 0.5;
 
 /// A neighbour counts as brighter when g_p >= g_c + kLbpTau, in units where
 /// the local mean is 128 (so the tolerance scales with the light).
@@ -812,34 +810,38 @@ void CheckFeatures(const std::vector<float>& features) {
   }
 }
 
+double CalcBlockDistance(const FeatureBlock& block,
+                         const float* a,
+                         const float* b,
+                         const ColourTolerance& colour) {
+  if (block.histogram) {
+    // Histogram intersection (Swain and Ballard 1991) of the histograms
+    // h = a^2: D = 1 - sum min(h_a, h_b). Extra mass in one histogram (an
+    // occluder) costs only its own share, where the Hellinger distance
+    // grows with its square root (tuning views: accepted and right at 3 %
+    // false accepts 0.71 against 0.65).
+    double intersection = 0.0;
+    for (int i = 0; i < block.size; ++i) {
+      intersection += std::min(double{a[i]} * a[i], double{b[i]} * b[i]);
+    }
+    return std::clamp(1.0 - intersection, 0.0, 1.0);
+  }
+  // Mean log chromaticities: free within the light-colour ellipse.
+  const double d_red = double{a[0]} - b[0];
+  const double d_blue = double{a[1]} - b[1];
+  const double along = std::abs(d_blue - d_red) / std::sqrt(2.0);
+  const double across = std::abs(d_blue + d_red) / std::sqrt(2.0);
+  const double excess =
+      std::max(0.0,
+               std::hypot(along / colour.along, across / colour.across) - 1.0) *
+      colour.along;
+  return std::clamp(excess / colour.range, 0.0, 1.0);
+}
+
 double CalcSimilarity(const float* a, const float* b) {
   double score = 1.0;
   for (const FeatureBlock& block : FeatureLayout()) {
-    if (block.histogram) {
-      // Histogram intersection (Swain and Ballard 1991) of the histograms
-      // h = a^2: D = 1 - sum min(h_a, h_b). Extra mass in one histogram (an
-      // occluder) costs only its own share, where the Hellinger distance
-      // grows with its square root (tuning views: accepted and right at 3 %
-      // false accepts 0.71 against 0.65).
-      double intersection = 0.0;
-      for (int i = 0; i < block.size; ++i) {
-        intersection += std::min(double{a[i]} * a[i], double{b[i]} * b[i]);
-      }
-      score -= block.weight * std::clamp(1.0 - intersection, 0.0, 1.0);
-    } else {
-      // Mean log chromaticities: free within the light-colour ellipse.
-      const double d_red = double{a[0]} - b[0];
-      const double d_blue = double{a[1]} - b[1];
-      const double along = std::abs(d_blue - d_red) / std::sqrt(2.0);
-      const double across = std::abs(d_blue + d_red) / std::sqrt(2.0);
-      const double excess =
-          std::max(0.0,
-                   std::hypot(along / kColourTolerance,
-                              across / kColourAcrossTolerance) -
-                       1.0) *
-          kColourTolerance;
-      score -= block.weight * std::clamp(excess / kColourRange, 0.0, 1.0);
-    }
+    score -= block.weight * CalcBlockDistance(block, a, b);
     a += block.size;
     b += block.size;
   }

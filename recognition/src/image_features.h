@@ -89,6 +89,24 @@ void AggregateCells(const float* cells,
 /// @throws std::invalid_argument "features: ..." naming the rule.
 void CheckFeatures(const std::vector<float>& features);
 
+/// Tolerances of the mean-colour block's distance: the log chromaticity
+/// difference is free within an ellipse about the lamp (warm-cool) axis,
+/// `along` it and `across` it; beyond, D grows with the excess (in units of
+/// `along`) and saturates `range` further on. The defaults are the
+/// recogniser's (how they were chosen: image_features.cc).
+struct ColourTolerance {
+  double along = 0.35;
+  double across = 0.15;
+  double range = 0.5;
+};
+
+/// D_b of one block (CalcSimilarity): `a` and `b` point at the block's first
+/// value in two single-scale vectors. In [0, 1].
+double CalcBlockDistance(const FeatureBlock& block,
+                         const float* a,
+                         const float* b,
+                         const ColourTolerance& colour = ColourTolerance{});
+
 /// Similarity of two single-scale vectors, in [0, 1]:
 /// score = 1 - sum_b w_b * D_b, with D_b = 1 - sum_i min(h_a,i, h_b,i) the
 /// histogram intersection distance of the histograms h = (stored value)^2,

@@ -79,35 +79,21 @@ double Env(const char* name, double fallback) {
   return v ? std::atof(v) : fallback;
 }
 
-/// Per-block distances of two single-scale vectors, as CalcSimilarity
-/// (image_features.cc) computes them: histogram intersection distance, and
-/// for the mean colour the excess beyond the lamp-axis ellipse (tolerances
-/// overridable with X_ALONG, X_ACROSS, X_RANGE).
+/// Per-block distances of two single-scale vectors, CalcBlockDistance's
+/// (the colour tolerances overridable with X_ALONG, X_ACROSS, X_RANGE).
 void Distances(const float* a, const float* b, double* out) {
+  static const internal::ColourTolerance colour = [] {
+    internal::ColourTolerance t;
+    t.along = Env("X_ALONG", t.along);
+    t.across = Env("X_ACROSS", t.across);
+    t.range = Env("X_RANGE", t.range);
+    return t;
+  }();
   int k = 0;
   for (const FeatureBlock& block : internal::FeatureLayout()) {
-    if (block.histogram) {
-      double inter = 0.0;
-      for (int i = 0; i < block.size; ++i)
-        inter += std::min(double{a[i]} * a[i], double{b[i]} * b[i]);
-      out[k] = std::clamp(1.0 - inter, 0.0, 1.0);
-    } else {
-      static const double along_tol = Env("X_ALONG", 0.35);
-      static const double across_tol = Env("X_ACROSS", 0.15);
-      static const double range = Env("X_RANGE", 0.5);
-      // Lamp axis: log(R/G) and log(B/G) move in opposite directions.
-      const double dr = double{a[0]} - b[0], db = double{a[1]} - b[1];
-      const double along = std::abs(dr - db) / std::sqrt(2.0);
-      const double across = std::abs(dr + db) / std::sqrt(2.0);
-      // Elliptical tolerance; beyond it, the excess in units of the along
-      // tolerance (equal tolerances: the isotropic rule).
-      const double r = std::hypot(along / along_tol, across / across_tol);
-      const double d = std::max(0.0, r - 1.0) * along_tol;
-      out[k] = std::clamp(d / range, 0.0, 1.0);
-    }
+    out[k++] = internal::CalcBlockDistance(block, a, b, colour);
     a += block.size;
     b += block.size;
-    ++k;
   }
 }
 
