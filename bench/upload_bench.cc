@@ -21,11 +21,16 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <iostream>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
+
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include "frictiond/estimators/stroke_csv.h"
 #include "frictiond/server/library.h"
@@ -155,12 +160,37 @@ int History(int uploads) {
   return 0;
 }
 
+/// CPU seconds (user + system) the process `pid` has used so far.
+double ProcessCpuSeconds(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string line;
+  std::getline(in, line);
+  // Fields after the command (which may hold spaces), from its ')':
+  // 3 state ... 14 utime, 15 stime.
+  std::istringstream rest(line.substr(line.rfind(')') + 2));
+  std::string field;
+  double ticks = 0;
+  for (int k = 3; k <= 15 && rest >> field; ++k)
+    if (k >= 14) ticks += std::atof(field.c_str());
+  return ticks / static_cast<double>(sysconf(_SC_CLK_TCK));
+}
+
+/// CPU seconds this process (the clients) has used so far.
+double SelfCpuSeconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return u.ru_utime.tv_sec + u.ru_stime.tv_sec +
+         1e-6 * (u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
 /// Uploads per second of `materials.size()` clients, one per material, for
-/// `seconds`.
+/// `seconds`. Prints the daemon's and the clients' CPU time per upload.
 double Throughput(const testing::DaemonProcess& daemon,
                   const std::vector<std::string>& materials,
                   double seconds,
                   std::uint64_t seed) {
+  const double daemon_cpu0 = ProcessCpuSeconds(daemon.pid());
+  const double client_cpu0 = SelfCpuSeconds();
   std::atomic<int> done{0};
   std::atomic<bool> failed{false};
   std::string error;
@@ -180,8 +210,15 @@ double Throughput(const testing::DaemonProcess& daemon,
     });
   }
   for (auto& t : clients) t.join();
+  const double wall = SecondsSince(t0);
   if (failed) throw std::runtime_error(error);
-  return done / SecondsSince(t0);
+  std::cerr << "upload_parallel: " << materials.size() << " client(s): " << done
+            << " uploads, wall " << wall * 1e3 / done
+            << " ms/upload, CPU per upload: daemon "
+            << (ProcessCpuSeconds(daemon.pid()) - daemon_cpu0) * 1e3 / done
+            << " ms, clients " << (SelfCpuSeconds() - client_cpu0) * 1e3 / done
+            << " ms\n";
+  return done / wall;
 }
 
 /// The same comparison in-process through FrictionLibrary::IngestStrokes
