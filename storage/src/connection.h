@@ -181,7 +181,9 @@ class Driver {
  public:
   virtual ~Driver() = default;
   virtual const Dialect& dialect() const = 0;
-  /// Runs `f` on a connection outside any explicit transaction (reads).
+  /// Runs `f` (reads only) on a connection outside any write transaction;
+  /// SQLite gives it a read-only connection and one snapshot, PostgreSQL
+  /// runs each statement on its own.
   virtual void Read(const std::function<void(Connection&)>& f) = 0;
   /// Runs `f` in one write transaction and commits it; rolls back when `f`
   /// throws. `f` may run twice when the driver retries a transaction it

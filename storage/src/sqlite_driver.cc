@@ -1,15 +1,21 @@
-// SQLite driver of the store (connection.h): one connection behind a mutex,
-// WAL journal and synchronous=FULL (an acknowledged write survives kill -9
-// and power loss), foreign keys on, prepared statements cached by their
-// text, every value bound. A write transaction is BEGIN IMMEDIATE: it holds
-// the database's write lock from its first statement, which is the row
-// locking the store logic asks for (Dialect: no lock clauses needed). An
-// unusable database file (busy, locked, read-only, full, I/O) throws
+// SQLite driver of the store (connection.h): one write connection behind a
+// mutex, WAL journal and synchronous=FULL (an acknowledged write survives
+// kill -9 and power loss), foreign keys on, prepared statements cached by
+// their text, every value bound. A write transaction is BEGIN IMMEDIATE: it
+// holds the database's write lock from its first statement, which is the
+// row locking the store logic asks for (Dialect: no lock clauses needed).
+// Reads of a database file run on read-only connections of their own (a
+// small pool), each Read in one read transaction (a consistent snapshot):
+// in WAL mode they neither wait for a write's commit and fsync nor block it,
+// so one upload's read of its pair does not queue behind another upload's
+// commit. A ":memory:" database has one connection for both. An unusable
+// database file (busy, locked, read-only, full, I/O) throws
 // StoreUnavailable, any other failure std::runtime_error.
 #include <map>
 #include <mutex>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <sqlite3.h>
 
@@ -159,26 +165,35 @@ class Statement {
 
 class SqliteConnection final : public Connection {
  public:
-  explicit SqliteConnection(const std::string& path) {
+  enum class Mode { kReadWrite, kReadOnly };
+
+  /// Opens `path`; kReadOnly opens an existing database for reads only
+  /// (the write connection has made it WAL already).
+  SqliteConnection(const std::string& path, Mode mode) {
     if (sqlite3_libversion_number() < kMinSqliteVersion) {
       throw std::runtime_error(std::string("sqlite: library ") +
                                sqlite3_libversion() +
                                " is older than 3.35 (needed for RETURNING)");
     }
-    if (sqlite3_open_v2(
-            path.c_str(),
-            &db_,
-            SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX,
-            nullptr) != SQLITE_OK) {
+    const int flags =
+        mode == Mode::kReadOnly
+            ? SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX
+            : SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX;
+    const int rc = sqlite3_open_v2(path.c_str(), &db_, flags, nullptr);
+    if (rc != SQLITE_OK) {
       const std::string why = db_ ? sqlite3_errmsg(db_) : "out of memory";
       sqlite3_close(db_);
+      if (mode == Mode::kReadOnly)  // the file went away or is unreadable
+        ThrowSqliteError(rc, "cannot open '" + path + "' to read: " + why);
       throw std::runtime_error("sqlite: cannot open '" + path + "': " + why);
     }
     sqlite3_busy_timeout(db_, 5000);
     try {
       ExecuteScript("PRAGMA foreign_keys=ON");
-      if (path != ":memory:") ExecuteScript("PRAGMA journal_mode=WAL");
-      ExecuteScript("PRAGMA synchronous=FULL");
+      if (mode == Mode::kReadWrite) {
+        if (path != ":memory:") ExecuteScript("PRAGMA journal_mode=WAL");
+        ExecuteScript("PRAGMA synchronous=FULL");
+      }
     } catch (...) {
       sqlite3_close(db_);
       throw;
@@ -220,13 +235,29 @@ class SqliteConnection final : public Connection {
 
 class SqliteDriver final : public Driver {
  public:
-  explicit SqliteDriver(const std::string& path) : connection_(path) {}
+  explicit SqliteDriver(const std::string& path)
+      : path_(path),
+        connection_(path, SqliteConnection::Mode::kReadWrite),
+        separate_readers_(path != ":memory:") {}
 
   const Dialect& dialect() const override { return kSqliteDialect; }
 
   void Read(const std::function<void(Connection&)>& f) override {
-    std::lock_guard<std::mutex> lock(mu_);
-    f(connection_);
+    if (!separate_readers_) {
+      std::lock_guard<std::mutex> lock(mu_);
+      f(connection_);
+      return;
+    }
+    std::unique_ptr<SqliteConnection> reader = TakeReader();
+    reader->ExecuteScript("BEGIN");  // the snapshot starts at the first read
+    try {
+      f(*reader);
+      reader->ExecuteScript("COMMIT");
+    } catch (...) {
+      reader->Rollback();
+      throw;  // the reader is closed, not pooled
+    }
+    GiveBackReader(std::move(reader));
   }
 
   void Write(const std::function<void(Connection&)>& f) override {
@@ -254,8 +285,34 @@ class SqliteDriver final : public Driver {
   }
 
  private:
-  std::mutex mu_;
+  /// Idle read connections kept open (more are opened while more threads
+  /// read at once, and closed after).
+  static constexpr std::size_t kIdleReaders = 4;
+
+  std::unique_ptr<SqliteConnection> TakeReader() {
+    {
+      std::lock_guard<std::mutex> lock(readers_mu_);
+      if (!readers_.empty()) {
+        std::unique_ptr<SqliteConnection> r = std::move(readers_.back());
+        readers_.pop_back();
+        return r;
+      }
+    }
+    return std::make_unique<SqliteConnection>(
+        path_, SqliteConnection::Mode::kReadOnly);
+  }
+
+  void GiveBackReader(std::unique_ptr<SqliteConnection> reader) {
+    std::lock_guard<std::mutex> lock(readers_mu_);
+    if (readers_.size() < kIdleReaders) readers_.push_back(std::move(reader));
+  }
+
+  const std::string path_;
+  std::mutex mu_;  // the write connection
   SqliteConnection connection_;
+  const bool separate_readers_;
+  std::mutex readers_mu_;
+  std::vector<std::unique_ptr<SqliteConnection>> readers_;
 };
 
 }  // namespace
