@@ -242,6 +242,34 @@ TEST(DropRate, StochasticTruthDropsAtTheRequestedRisk) {
   }
 }
 
+TEST(Adapter, SlipSpeedFromTheCurrentStateWhenAsked) {
+  Scene s;
+  const int bz_dof = s.m->jnt_dofadr[mj_name2id(s.m, mjOBJ_JOINT, "bz")];
+  for (bool current : {false, true}) {
+    AdapterOptions o;
+    o.current_slip_speed = current;
+    FrictionAdapter a(o);
+    s.Tag(&a);
+    mj_resetData(s.m, s.d);
+    a.Reset(1);
+    s.d->ctrl[0] = s.d->ctrl[1] = 3.0;
+    s.m->opt.gravity[2] = 0.0;
+    for (int i = 0; i < 20; ++i) a.Step(s.m, s.d);  // contacts established
+    // The box is set sliding down at 20 mm/s; the next step's friction
+    // sees that speed (current state) or the previous step's (about 0).
+    s.d->qvel[bz_dof] = -0.02;
+    a.Step(s.m, s.d);
+    ASSERT_EQ(a.episodes().size(), 2u);
+    for (const auto& [key, ep] : a.episodes()) {
+      if (current)
+        EXPECT_NEAR(ep.v_mm_s, 20.0, 1e-6);
+      else
+        EXPECT_LT(ep.v_mm_s, 0.1);
+    }
+  }
+  s.m->opt.gravity[2] = -9.81;
+}
+
 TEST(Adapter, SameSeedSameRunAndRejectsRk4) {
   Scene s;
   FrictionAdapter a(AdapterOptions{});
