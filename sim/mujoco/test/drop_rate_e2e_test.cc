@@ -146,6 +146,9 @@ StrokeData TruthStrokes(const StochasticFrictionModel& t,
 // the hold); the box then needs time to fall, so the episode runs kGraceS
 // past the hold.
 struct Outcome {
+  /// eps_a + eps_b below the slip level at one of the hold's 1 + hold_s /
+  /// dt_s looks (the event the hold risk counts; episodes with a level).
+  bool crossed = false;
   bool slipped = false;          ///< lower than kSlipM within the hold
   bool dropped_in_hold = false;  ///< lower than kDropM within the hold
   /// Lower than kDropM by hold + grace, in a sliding run (box speed above
@@ -177,7 +180,13 @@ struct Scene {
   // One episode, both fingers at fn_n; adapter == nullptr: plain mj_step.
   // The hold of kHoldS is followed by kGraceS under the same load, so that
   // a slip that started in the hold can fall kDropM (Outcome).
-  Outcome Episode(FrictionAdapter* adapter, std::uint64_t seed, double fn_n) {
+  // slip_level: the level of eps_a + eps_b below which the pinch slips at
+  // rest (L / Fn - mean mu_a - mean mu_b of the live models), for
+  // Outcome::crossed; NaN: not checked.
+  Outcome Episode(FrictionAdapter* adapter,
+                  std::uint64_t seed,
+                  double fn_n,
+                  double slip_level = std::nan("")) {
     mj_resetData(m, d);
     if (adapter) adapter->Reset(seed);
     d->ctrl[0] = fn_n;
@@ -203,6 +212,11 @@ struct Scene {
         slide_start = -1;
       }
       if (k < hold && z < -kSlipM) out.slipped = true;
+      if (adapter && k <= hold && !std::isnan(slip_level)) {
+        double eps = 0.0;  // the eps of this step (the step at hold_s too)
+        for (const auto& [pair, ep] : adapter->episodes()) eps += ep.eps;
+        if (eps < slip_level) out.crossed = true;
+      }
       if (z < -kDropM) {
         out.dropped_in_hold = k < hold;
         // The sliding run that dropped the box began in the hold: the
@@ -330,7 +344,7 @@ TEST(DropRateEndToEnd, IdentifiedModelDropsNearTheRequestedRisk) {
     csv << "risk,episodes_truth,fn_truth,drops_truth,drops_truth_in_hold,"
            "late_truth,episodes,fn_served,p_served,drops_served,"
            "drops_served_in_hold,late_served,slips_served,coulomb_episodes,"
-           "drops_coulomb,drops_default\n";
+           "drops_coulomb,drops_default,crossings_truth,crossings_served\n";
   }
   // FRICTIOND_E2E_EPISODE_SEED: first episode seed (the test uses 1000;
   // scene choices were made on others).
@@ -342,6 +356,11 @@ TEST(DropRateEndToEnd, IdentifiedModelDropsNearTheRequestedRisk) {
   const std::vector<double> risks =
       csv_path ? std::vector<double>{0.01, 0.02, 0.05, 0.1, 0.2, 0.3}
                : std::vector<double>{0.01, 0.05, 0.2};
+  // The truths' slip level of eps_a + eps_b at rest (pinch_grip.h).
+  const auto slip_level = [&](double fn_n) {
+    return load / fn_n - (truth_a.mu.beta(0) + truth_b.mu.beta(0)) -
+           (truth_a.mu.beta(2) + truth_b.mu.beta(2)) * fn_n;
+  };
   t0 = std::chrono::steady_clock::now();
   double fall_max_s = 0.0;
   for (double risk : risks) {
@@ -360,18 +379,23 @@ TEST(DropRateEndToEnd, IdentifiedModelDropsNearTheRequestedRisk) {
     hold.hold_s = kHoldS;
     const GripForce sa = CalcGripForce(served_a, 0.5 * load, risk, hold);
     const GripForce sb = CalcGripForce(served_b, 0.5 * load, risk, hold);
-    int drops_truth = 0, hold_truth = 0, late_truth = 0;
-    int drops_served = 0, hold_served = 0, late_served = 0, slips_served = 0;
+    int drops_truth = 0, hold_truth = 0, late_truth = 0, crossed_truth = 0;
+    int drops_served = 0, hold_served = 0, late_served = 0, slips_served = 0,
+        crossed_served = 0;
     for (int e = 0; e < std::max(episodes, episodes_truth); ++e) {
       if (e < episodes_truth) {
-        const Outcome o = s.Episode(&live, episode_seed + e, gt.fn_n);
+        const Outcome o =
+            s.Episode(&live, episode_seed + e, gt.fn_n, slip_level(gt.fn_n));
+        crossed_truth += o.crossed;
         drops_truth += o.dropped;
         hold_truth += o.dropped_in_hold;
         late_truth += o.dropped_late;
         if (o.dropped) fall_max_s = std::max(fall_max_s, o.fall_s);
       }
       if (e >= episodes) continue;
-      const Outcome o = s.Episode(&live, episode_seed + e, gs.fn_n);
+      const Outcome o =
+          s.Episode(&live, episode_seed + e, gs.fn_n, slip_level(gs.fn_n));
+      crossed_served += o.crossed;
       drops_served += o.dropped;
       hold_served += o.dropped_in_hold;
       late_served += o.dropped_late;
@@ -388,14 +412,16 @@ TEST(DropRateEndToEnd, IdentifiedModelDropsNearTheRequestedRisk) {
     const int lo_truth = BinomialQuantile(episodes_truth, risk, 0.005);
     const int hi_truth = BinomialQuantile(episodes_truth, risk, 0.995);
     std::printf(
-        "risk %.2f: truth's model Fn %.3f N drops %d/%d (%.2f x r; 99%% "
-        "interval [%d, %d]; in the hold %d, began in the grace %d); served "
-        "model Fn %.3f N (its true P(slip) %.4f) drops %d/%d (%.4f, %.2f x "
-        "r; in the hold %d, began in the grace %d), slips (20 um) %d; "
+        "risk %.2f: truth's model Fn %.3f N crossings %d, drops %d/%d (%.2f "
+        "x r; 99%% interval [%d, %d]; in the hold %d, began in the grace "
+        "%d); served model Fn %.3f N (its true P(slip) %.4f) crossings %d, "
+        "drops %d/%d (%.4f, %.2f x r; in the hold %d, began in the grace "
+        "%d), slips (20 um) %d; "
         "service one-contact per finger (L/2) a: %s %.3f N, b: %s %.3f N; "
         "Coulomb served mean mu %d/%d; MuJoCo default %d/%d\n",
         risk,
         gt.fn_n,
+        crossed_truth,
         drops_truth,
         episodes_truth,
         drops_truth / (risk * episodes_truth),
@@ -405,6 +431,7 @@ TEST(DropRateEndToEnd, IdentifiedModelDropsNearTheRequestedRisk) {
         late_truth,
         gs.fn_n,
         risk_truth.SlipProbability(gs.fn_n),
+        crossed_served,
         drops_served,
         episodes,
         rate,
@@ -426,7 +453,8 @@ TEST(DropRateEndToEnd, IdentifiedModelDropsNearTheRequestedRisk) {
           << episodes << ',' << gs.fn_n << ','
           << risk_truth.SlipProbability(gs.fn_n) << ',' << drops_served << ','
           << hold_served << ',' << late_served << ',' << slips_served << ','
-          << kCompare << ',' << drops_coulomb << ',' << drops_default << '\n';
+          << kCompare << ',' << drops_coulomb << ',' << drops_default << ','
+          << crossed_truth << ',' << crossed_served << '\n';
     // End to end: within a factor of 1.5 of the requested risk.
     EXPECT_GE(rate, risk / 1.5) << "risk " << risk;
     EXPECT_LE(rate, risk * 1.5) << "risk " << risk;
@@ -434,6 +462,9 @@ TEST(DropRateEndToEnd, IdentifiedModelDropsNearTheRequestedRisk) {
     // binomial interval of r.
     EXPECT_GE(drops_truth, lo_truth) << "risk " << risk;
     EXPECT_LE(drops_truth, hi_truth) << "risk " << risk;
+    // The event the hold risk counts, eps below the slip level at a look.
+    EXPECT_GE(crossed_truth, lo_truth) << "risk " << risk;
+    EXPECT_LE(crossed_truth, hi_truth) << "risk " << risk;
     EXPECT_TRUE(drops_coulomb == 0 || drops_coulomb == kCompare);
     EXPECT_EQ(drops_default, 0);
   }
