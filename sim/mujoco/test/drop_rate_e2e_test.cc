@@ -6,7 +6,9 @@
 // service's hold risk extended to two contacts); the truths, live in
 // MuJoCo through FrictionAdapter, decide whether the box drops. Over
 // seeded episodes the drop frequency must be within a factor of 1.5 of the
-// requested risk.
+// requested risk, and with the truth's own grip force inside the 99 %
+// binomial interval of it. A drop of the hold is a slip that started in
+// the hold and fell 5 mm by the end of a grace after it (Outcome).
 //
 // The truths are wider than the estimator's assumptions: eps has a
 // per-stroke offset and an AR(1) part (eps_time.h's latent process), and
