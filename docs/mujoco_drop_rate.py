@@ -32,6 +32,12 @@ def main(src, dst):
     series = [
         ("truth's model (its own grip force)", "#1f77b4", "circle",
          [int(r["drops_truth"]) / int(r["episodes_truth"]) for r in rows]),
+    ]
+    if "crossings_truth" in rows[0]:
+        series.append(
+            ("truth: eps below the slip level", "#1f77b4", "ring",
+             [int(r["crossings_truth"]) / int(r["episodes_truth"]) for r in rows]))
+    series += [
         ("identified by the daemon (end to end)", "#d62728", "square",
          [int(r["drops_served"]) / int(r["episodes"]) for r in rows]),
         ("Coulomb, served mean mu", "#2ca02c", "triangle",
@@ -62,9 +68,11 @@ def main(src, dst):
     o.append(f'<text x="{(L + W - R) / 2:.0f}" y="{H - 18}" text-anchor="middle">'
              'requested risk r (two-contact pinch, 0.5 s hold)</text>')
     o.append(f'<text transform="translate(20,{(T + H - B) / 2:.0f}) rotate(-90)" '
-             'text-anchor="middle">drop frequency (log; 0 at the bottom)</text>')
+             'text-anchor="middle">frequency per hold (log; 0 at the bottom)</text>')
 
     def marker(kind, x, y, c):
+        if kind == "ring":
+            return f'<circle cx="{x:.1f}" cy="{y:.1f}" r="5" fill="none" stroke="{c}" stroke-width="1.5"/>'
         if kind == "circle":
             return f'<circle cx="{x:.1f}" cy="{y:.1f}" r="4" fill="{c}"/>'
         if kind == "square":
@@ -74,9 +82,10 @@ def main(src, dst):
         return f'<polygon points="{x:.1f},{y - 5:.1f} {x + 5:.1f},{y:.1f} {x:.1f},{y + 5:.1f} {x - 5:.1f},{y:.1f}" fill="{c}"/>'
 
     for i, (name, c, kind, freq) in enumerate(series):
-        dy = 3 * (i - 1.5) if kind in ("triangle", "diamond") else 0  # separate overlaps at 0
+        dy = {"triangle": -3, "diamond": 3}.get(kind, 0)  # separate overlaps at 0
         pts = " ".join(f"{px(r):.1f},{py(f) + dy:.1f}" for r, f in zip(risk, freq))
-        o.append(f'<polyline fill="none" stroke="{c}" stroke-width="1.5" points="{pts}"/>')
+        dash = ' stroke-dasharray="2,2"' if kind == "ring" else ""
+        o.append(f'<polyline fill="none" stroke="{c}" stroke-width="1.5"{dash} points="{pts}"/>')
         for r, f in zip(risk, freq):
             o.append(marker(kind, px(r), py(f) + dy, c))
         ly = T + 20 + 22 * i

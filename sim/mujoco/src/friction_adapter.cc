@@ -185,6 +185,22 @@ double FrictionAdapter::CalcMu(const StochasticFrictionModel& model,
   return std::clamp(mu, options_.mu_min, options_.mu_max);
 }
 
+namespace {
+
+// Tangential relative speed of contact c's geoms at its point [m/s].
+double TangentialSpeed(const mjModel* m, const mjData* d, const mjContact& c) {
+  mjtNum v1[3], v2[3];
+  PointVelocity(m, d, c.geom1, c.pos, v1);
+  PointVelocity(m, d, c.geom2, c.pos, v2);
+  mjtNum rel[3] = {v2[0] - v1[0], v2[1] - v1[1], v2[2] - v1[2]};
+  const mjtNum* n = c.frame;  // first row: contact normal
+  const mjtNum vn = rel[0] * n[0] + rel[1] * n[1] + rel[2] * n[2];
+  for (int k = 0; k < 3; ++k) rel[k] -= vn * n[k];
+  return std::sqrt(rel[0] * rel[0] + rel[1] * rel[1] + rel[2] * rel[2]);
+}
+
+}  // namespace
+
 void FrictionAdapter::MeasurePairs(const mjModel* m, const mjData* d) {
   // Forces and velocities of the contacts of the step just taken (efc_force
   // belongs to d->contact until the next collision).
@@ -199,19 +215,22 @@ void FrictionAdapter::MeasurePairs(const mjModel* m, const mjData* d) {
     if (it == episodes_.end()) continue;
     mjtNum f[6];
     mj_contactForce(m, d, i, f);
-    mjtNum v1[3], v2[3];
-    PointVelocity(m, d, c.geom1, c.pos, v1);
-    PointVelocity(m, d, c.geom2, c.pos, v2);
-    mjtNum rel[3] = {v2[0] - v1[0], v2[1] - v1[1], v2[2] - v1[2]};
-    const mjtNum* n = c.frame;  // first row: contact normal
-    const mjtNum vn = rel[0] * n[0] + rel[1] * n[1] + rel[2] * n[2];
-    for (int k = 0; k < 3; ++k) rel[k] -= vn * n[k];
-    const double vt =
-        std::sqrt(rel[0] * rel[0] + rel[1] * rel[1] + rel[2] * rel[2]);
     ContactEpisode& ep = it->second;
     ep.fn_n += std::max<mjtNum>(f[0], 0.0);
-    ep.v_mm_s = std::max(ep.v_mm_s, 1000.0 * vt);  // m/s -> mm/s
+    if (!options_.current_slip_speed)
+      ep.v_mm_s =
+          std::max(ep.v_mm_s, 1000.0 * TangentialSpeed(m, d, c));  // mm/s
     ep.seen = true;
+  }
+}
+
+void FrictionAdapter::MeasureSlipSpeeds(const mjModel* m, const mjData* d) {
+  for (int i = 0; i < d->ncon; ++i) {
+    const mjContact& c = d->contact[i];
+    auto it = episodes_.find(PairKey(c.geom1, c.geom2));
+    if (it == episodes_.end()) continue;
+    it->second.v_mm_s =
+        std::max(it->second.v_mm_s, 1000.0 * TangentialSpeed(m, d, c));
   }
 }
 
@@ -312,6 +331,12 @@ void FrictionAdapter::Step(const mjModel* m, mjData* d) {
   mj_crb(m, d);
   mj_factorM(m, d);
   mj_collision(m, d);
+  if (options_.current_slip_speed && !episodes_.empty()) {
+    // The velocities of the current state (cvel is otherwise the previous
+    // step's until mj_fwdVelocity recomputes it, identically, below).
+    mj_comVel(m, d);
+    MeasureSlipSpeeds(m, d);
+  }
   SetContactFriction(m, d);
   mj_makeConstraint(m, d);
   mj_transmission(m, d);

@@ -8,6 +8,8 @@
 // 0.7 mm/s with two contacts. Elliptic cone, impratio 10 and 30 noslip
 // iterations remove soft-contact creep, so friction decides slip.
 
+#include <cmath>
+
 namespace frictiond::mujoco {
 
 inline constexpr const char* kPinchScene = R"(
@@ -40,5 +42,23 @@ inline constexpr const char* kPinchScene = R"(
 inline constexpr double kSettleS = 0.2;  ///< gravity off, grip established [s]
 inline constexpr double kHoldS = 0.5;    ///< hold time under load [s]
 inline constexpr double kDropM = 0.005;  ///< box lower than this: dropped [m]
+/// Run on after the hold so that a slip that started in it can fall kDropM
+/// (onset to 5 mm takes at most 0.09 s in the e2e scene) [s].
+inline constexpr double kGraceS = 0.2;
+/// The box moves faster than this: it slides (a constant-mu hold below its
+/// limit stays below 0.1 mm/s, the no-creep test) [m/s].
+inline constexpr double kSlideSpeed = 1e-4;
+
+/// Smallest k with P(X <= k) >= p for X ~ Binomial(n, r).
+inline int BinomialQuantile(int n, double r, double p) {
+  double cdf = 0.0;
+  for (int k = 0; k <= n; ++k) {
+    cdf += std::exp(std::lgamma(n + 1.0) - std::lgamma(k + 1.0) -
+                    std::lgamma(n - k + 1.0) + k * std::log(r) +
+                    (n - k) * std::log1p(-r));
+    if (cdf >= p) return k;
+  }
+  return n;
+}
 
 }  // namespace frictiond::mujoco
