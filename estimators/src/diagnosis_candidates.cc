@@ -238,12 +238,15 @@ std::vector<Expansion> BuildExpansions(
       }
       // Few distinct values: a categorical column, one level per value.
       std::vector<Term> bins = BinTerms(name, s, options.bins);
-      if (!bins.empty())
+      if (!bins.empty()) {
+        const bool levels = s.distinct <= options.bins;
         out.push_back({name,
                        "covariate",
-                       s.distinct <= options.bins ? "levels" : "bins",
+                       levels ? "levels" : "bins",
                        std::move(bins),
-                       {}});
+                       {},
+                       levels && options.pool_levels});
+      }
       std::vector<Term> windows = ScanWindows(name, s, options.bins);
       if (!windows.empty())
         out.push_back({name, "covariate", "window", {}, std::move(windows)});

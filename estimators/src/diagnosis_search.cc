@@ -62,6 +62,7 @@ Selection Select(const StrokeData& data,
   const std::vector<Expansion> expansions = BuildExpansions(
       data, cv.rows, form_inputs, options, &out.candidates, &out.skipped);
   std::vector<Term> current = baseline;
+  std::vector<PooledBlock> cur_pooled;  // pooled level blocks of `current`
   CvEval cur_eval = out.base_eval;
   std::set<std::string> used;
   const double base_mae = out.base_eval.mae;
@@ -69,26 +70,44 @@ Selection Select(const StrokeData& data,
     std::vector<CandidateTest> tests;
     std::vector<Expansion> exps;
     std::vector<CvEval> evals;
+    std::vector<std::vector<PooledBlock>> pools;  // per tested expansion
     const Eigen::MatrixXd X_cur = BuildDesign(data, current, cv.rows);
     Eigen::VectorXd full_residuals;
     auto try_expansion = [&](const Expansion& candidate) {
       Expansion e = candidate;
       CvEval ev;
+      std::vector<PooledBlock> pool = cur_pooled;
       if (!e.scan.empty()) {
         if (full_residuals.size() == 0)
           full_residuals = cv.y - X_cur * FitOls(X_cur, cv.y).beta;
         const WindowScan scan =
             MakeWindowScan(e.scan, *data.Column(e.cause), cv.rows);
         int chosen_window = -1;
-        ev = EvaluateWindowScan(
-            cv, X_cur, cur_eval, full_residuals, scan, &chosen_window);
+        ev = EvaluateWindowScan(cv,
+                                X_cur,
+                                cur_eval,
+                                full_residuals,
+                                scan,
+                                &chosen_window,
+                                cur_pooled);
         if (chosen_window < 0) return;
         e.terms = {e.scan[chosen_window]};
       } else {
         Eigen::MatrixXd X(X_cur.rows(), X_cur.cols() + e.terms.size());
         X.leftCols(X_cur.cols()) = X_cur;
         X.rightCols(e.terms.size()) = BuildDesign(data, e.terms, cv.rows);
-        ev = Evaluate(cv, X);
+        if (e.pooled && cur_eval.models.ok) {
+          PooledBlock blk;
+          blk.first = static_cast<int>(X_cur.cols());
+          blk.count = static_cast<int>(e.terms.size());
+          for (int k = 0; k < cv.folds; ++k) {
+            const Eigen::VectorXd r = cv.y - X_cur * cur_eval.models.beta[k];
+            blk.lambda.push_back(
+                PoolingLambda(cv, X, blk.first, blk.count, r, k));
+          }
+          pool.push_back(std::move(blk));
+        }
+        ev = Evaluate(cv, X, pool);
       }
       // Reference: the current model, plus the main effects an interaction
       // brings along.
@@ -99,7 +118,7 @@ Selection Select(const StrokeData& data,
         Eigen::MatrixXd X(X_cur.rows(), X_cur.cols() + mains.size());
         X.leftCols(X_cur.cols()) = X_cur;
         X.rightCols(mains.size()) = BuildDesign(data, mains, cv.rows);
-        ev_main = Evaluate(cv, X);
+        ev_main = Evaluate(cv, X, cur_pooled);
         if (ev_main.ok) ref = &ev_main;
       }
       CandidateTest t;
@@ -118,6 +137,7 @@ Selection Select(const StrokeData& data,
       tests.push_back(std::move(t));
       exps.push_back(std::move(e));
       evals.push_back(std::move(ev));
+      pools.push_back(std::move(pool));
     };
     for (const Expansion& candidate : expansions) {
       if (!used.count(candidate.cause)) try_expansion(candidate);
@@ -184,6 +204,7 @@ Selection Select(const StrokeData& data,
       out.chosen_gain.push_back(100.0 * (cur_eval.mae - evals[best].mae) /
                                 base_mae);
       current.insert(current.end(), e.terms.begin(), e.terms.end());
+      cur_pooled = pools[best];
       used.insert(e.cause);
     }
     CvEval next = best >= 0 ? evals[best] : CvEval();
@@ -295,6 +316,7 @@ OuterChain EvaluateChain(const StrokeData& data,
                          const CvSetup& outer,
                          const std::vector<Term>& baseline,
                          const std::vector<std::string>& causes,
+                         const std::vector<std::vector<std::string>>& stand_ins,
                          const std::vector<Selection>& fold_sel) {
   OuterChain c;
   const std::size_t m = causes.size();
@@ -308,20 +330,62 @@ OuterChain EvaluateChain(const StrokeData& data,
   for (int o = 0; o < outer.folds; ++o) {
     const Selection& sel = fold_sel[o];
     std::vector<Term> terms = baseline;
+    std::set<std::string> used_stand_in;
+    std::vector<PooledBlock> pooled, pending;
+    Eigen::MatrixXd X_prev;
+    Eigen::VectorXd beta_prev;
+    auto add = [&](const Expansion& e) {
+      if (e.pooled) {
+        PooledBlock blk;
+        blk.first = static_cast<int>(terms.size());
+        blk.count = static_cast<int>(e.terms.size());
+        blk.lambda.assign(outer.folds, 0.0);
+        pending.push_back(std::move(blk));
+      }
+      terms.insert(terms.end(), e.terms.begin(), e.terms.end());
+    };
     for (std::size_t i = 0; i <= m; ++i) {
       if (i > 0) {
+        bool found = false;
         for (const Expansion& e : sel.chosen) {
           if (e.cause != causes[i - 1]) continue;
-          terms.insert(terms.end(), e.terms.begin(), e.terms.end());
+          add(e);
           ++c.folds_selected[i - 1];
+          found = true;
+        }
+        // A fold that chose, instead, a candidate the data cannot tell
+        // apart from this finding (its alternatives; not itself in the
+        // chain, not used by this fold for an earlier finding) contributes
+        // that choice: the fold's selection made the same step.
+        for (std::size_t j = 0; !found && j < sel.chosen.size(); ++j) {
+          const Expansion& e = sel.chosen[j];
+          const auto& alt = stand_ins[i - 1];
+          if (std::find(alt.begin(), alt.end(), e.cause) == alt.end() ||
+              std::find(causes.begin(), causes.end(), e.cause) !=
+                  causes.end() ||
+              used_stand_in.count(e.cause))
+            continue;
+          add(e);
+          used_stand_in.insert(e.cause);
+          found = true;
         }
       }
       const Eigen::MatrixXd X = BuildDesign(data, terms, outer.rows);
-      const FoldModels fm = FitFolds(X, outer.y, outer.fold_begin);
+      // Pooled levels added in this step: their penalty from fold o's
+      // training residuals of the model before them.
+      for (PooledBlock& blk : pending) {
+        const Eigen::VectorXd r = outer.y - X_prev * beta_prev;
+        blk.lambda[o] = PoolingLambda(outer, X, blk.first, blk.count, r, o);
+        pooled.push_back(std::move(blk));
+      }
+      pending.clear();
+      const FoldModels fm = FitFolds(X, outer.y, outer.fold_begin, pooled);
       if (!fm.ok) {
         c.ok = false;
         return c;
       }
+      X_prev = X;
+      beta_prev = fm.beta[o];
       const double s2 = std::max(1e-300, fm.sigma[o] * fm.sigma[o]);
       const double ll0 = -0.5 * std::log(2.0 * M_PI * s2);
       for (int e = outer.fold_begin[o]; e < outer.fold_begin[o + 1]; ++e) {
@@ -625,6 +689,12 @@ DiagnosisResult RunDiagnosis(const StrokeData& data,
   std::vector<int> kept;
   for (std::size_t i = 0; i < sel.chosen.size(); ++i)
     kept.push_back(static_cast<int>(i));
+  // Each proposal's alternatives (candidates of its step the data cannot
+  // tell apart from it): an outer fold whose selection chose one of them
+  // instead is scored with that choice (see EvaluateChain).
+  std::vector<std::vector<Alternative>> alternatives(sel.chosen.size());
+  for (std::size_t i = 0; i < sel.chosen.size() && i < sel.steps.size(); ++i)
+    alternatives[i] = FindAlternatives(data, inner_all, sel.steps[i], options);
   const std::size_t m_tested = sel.chosen.size();
   OuterChain chain;
   std::vector<double> p_holm;
@@ -632,8 +702,16 @@ DiagnosisResult RunDiagnosis(const StrokeData& data,
   // m_tested + 1 passes; the last one evaluates the final list.
   for (std::size_t pass = 0; pass <= m_tested + 1; ++pass) {
     std::vector<std::string> causes;
-    for (int i : kept) causes.push_back(sel.chosen[i].cause);
-    chain = EvaluateChain(data, outer, baseline, causes, fold_sel);
+    std::vector<std::vector<std::string>> stand_ins;
+    for (int i : kept) {
+      causes.push_back(sel.chosen[i].cause);
+      stand_ins.emplace_back();
+      if (options.outer_alternatives) {
+        for (const Alternative& a : alternatives[i])
+          stand_ins.back().push_back(a.cause);
+      }
+    }
+    chain = EvaluateChain(data, outer, baseline, causes, stand_ins, fold_sel);
     if (!chain.ok) {
       result.status = DiagnosisStatus::kFailed;
       result.why = "an outer-fold model could not be fitted";
@@ -673,9 +751,7 @@ DiagnosisResult RunDiagnosis(const StrokeData& data,
     f.log_likelihood_gain = (chain.ll[k + 1] - chain.ll[k]) / n_outer;
     f.selection_bias_pct = sel.chosen_gain[kept[k]] - f.cv_mae_gain_pct;
     f.folds_selected = chain.folds_selected[k];
-    if (kept[k] < static_cast<int>(sel.steps.size()))
-      f.alternatives =
-          FindAlternatives(data, inner_all, sel.steps[kept[k]], options);
+    f.alternatives = alternatives[kept[k]];
     result.findings.push_back(std::move(f));
     current.insert(current.end(), e.terms.begin(), e.terms.end());
     chosen.push_back(e);

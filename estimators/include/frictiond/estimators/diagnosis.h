@@ -111,6 +111,12 @@ struct DiagnosisOptions {
   /// finding the selection proposes is then tested on the outer folds,
   /// Holm over the findings, at `alpha`).
   double selection_alpha = 0.05;
+  /// Outer test of a finding: an outer fold whose own selection did not
+  /// choose the finding's cause but one of its alternatives (a candidate
+  /// the selection on all strokes could not tell apart from it) is scored
+  /// with that choice instead of contributing no gain (issue 18, third
+  /// rates round). False: such folds contribute nothing (before).
+  bool outer_alternatives = true;
   /// Smallest held-out MAE gain that counts, in % of the baseline cv_mae.
   double min_gain_pct = 1.0;
   /// At most this many findings (greedy steps).
@@ -123,6 +129,14 @@ struct DiagnosisOptions {
   double min_relative_span = 0.02;
   /// Columns never tested as causes.
   std::vector<std::string> exclude_candidates;
+  /// A categorical column's levels (at most `bins` distinct values) are
+  /// fitted with partial pooling in every cross-validated fit: an iid
+  /// random-effects prior on the level effects, its variance against the
+  /// within-level variance of the (stroke, level) cell means estimated on
+  /// each fold's training strokes (method of moments), so that levels with
+  /// few strokes shrink toward the common mean instead of costing held-out
+  /// error. The served coefficients are the plain fit (docs/diagnosis.md).
+  bool pool_levels = false;
   /// Bins of the step basis for localized effects (>= 2).
   int bins = 8;
   /// Decay times of the slip-onset transient basis [s].
