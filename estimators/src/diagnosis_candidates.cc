@@ -238,15 +238,12 @@ std::vector<Expansion> BuildExpansions(
       }
       // Few distinct values: a categorical column, one level per value.
       std::vector<Term> bins = BinTerms(name, s, options.bins);
-      if (!bins.empty()) {
-        const bool levels = s.distinct <= options.bins;
+      if (!bins.empty())
         out.push_back({name,
                        "covariate",
-                       levels ? "levels" : "bins",
+                       s.distinct <= options.bins ? "levels" : "bins",
                        std::move(bins),
-                       {},
-                       levels && options.pool_levels});
-      }
+                       {}});
       std::vector<Term> windows = ScanWindows(name, s, options.bins);
       if (!windows.empty())
         out.push_back({name, "covariate", "window", {}, std::move(windows)});

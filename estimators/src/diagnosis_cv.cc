@@ -25,8 +25,7 @@ namespace frictiond::diagnosis_internal {
 /// intercept. A tiny ridge keeps collinear and empty columns at 0.
 FoldModels FitFolds(const Eigen::MatrixXd& X,
                     const Eigen::VectorXd& y,
-                    const std::vector<int>& fold_begin,
-                    const std::vector<PooledBlock>& pooled) {
+                    const std::vector<int>& fold_begin) {
   FoldModels out;
   const int n = static_cast<int>(X.rows());
   const int p = static_cast<int>(X.cols());
@@ -81,21 +80,6 @@ FoldModels FitFolds(const Eigen::MatrixXd& X,
     const Eigen::VectorXd rhs = g_total - g[k];
     const double ridge = 1e-9 * std::max(1, n_train);
     for (int j = 1; j < p; ++j) A(j, j) += ridge;
-    // Partial pooling: lambda b' (I - 11'/(m+1)) b in the original units,
-    // b = bz / scale.
-    for (const PooledBlock& blk : pooled) {
-      const double lam = blk.lambda[k];
-      if (!(lam > 0)) continue;
-      for (int a = blk.first; a < blk.first + blk.count; ++a) {
-        if (!active[a]) continue;
-        for (int b = blk.first; b < blk.first + blk.count; ++b) {
-          if (!active[b]) continue;
-          const double pen =
-              lam * ((a == b ? 1.0 : 0.0) - 1.0 / (blk.count + 1));
-          A(a, b) += pen / (scale(a) * scale(b));
-        }
-      }
-    }
     if (n_train < p_active + 2) return out;
     Eigen::LDLT<Eigen::MatrixXd> ldlt(A);
     if (ldlt.info() != Eigen::Success) return out;
@@ -158,11 +142,9 @@ void FinishEval(int n, const HeldOutSums& sums, CvEval* ev) {
 
 /// Held-out performance of one model.
 
-CvEval Evaluate(const CvSetup& cv,
-                const Eigen::MatrixXd& X,
-                const std::vector<PooledBlock>& pooled) {
+CvEval Evaluate(const CvSetup& cv, const Eigen::MatrixXd& X) {
   CvEval ev;
-  ev.models = FitFolds(X, cv.y, cv.fold_begin, pooled);
+  ev.models = FitFolds(X, cv.y, cv.fold_begin);
   if (!ev.models.ok) return ev;
   const int n = static_cast<int>(X.rows());
   ev.residuals.resize(n);
@@ -173,65 +155,6 @@ CvEval Evaluate(const CvSetup& cv,
         cv, X, k, ev.models.beta[k], ev.models.sigma[k], &ev, &sums);
   FinishEval(n, sums, &ev);
   return ev;
-}
-
-double PoolingLambda(const CvSetup& cv,
-                     const Eigen::MatrixXd& X,
-                     int first,
-                     int count,
-                     const Eigen::VectorXd& r,
-                     int k) {
-  // Cells (stroke, level): level 0 is the reference (no indicator set).
-  std::map<std::pair<int, int>, std::pair<double, int>> cells;
-  for (int e = 0; e < static_cast<int>(r.size()); ++e) {
-    if (k >= 0 && e >= cv.fold_begin[k] && e < cv.fold_begin[k + 1]) continue;
-    int level = 0;
-    for (int j = 0; j < count; ++j) {
-      if (X(e, first + j) != 0.0) level = j + 1;
-    }
-    auto& c = cells[{cv.stroke_of_entry[e], level}];
-    c.first += r(e);
-    ++c.second;
-  }
-  const int L = count + 1;
-  std::vector<double> sum(L, 0.0);
-  std::vector<int> n(L, 0);
-  int samples = 0;
-  for (const auto& [key, c] : cells) {
-    sum[key.second] += c.first / c.second;
-    ++n[key.second];
-    samples += c.second;
-  }
-  const int S = static_cast<int>(cells.size());
-  int levels = 0;
-  double grand = 0.0, sum_n2 = 0.0;
-  for (int l = 0; l < L; ++l) {
-    if (n[l] == 0) continue;
-    ++levels;
-    grand += sum[l];
-    sum_n2 += static_cast<double>(n[l]) * n[l];
-  }
-  constexpr double kRemove = 1e12;  // no level effect: remove the levels
-  if (levels < 2 || S <= levels) return kRemove;
-  grand /= S;
-  double ssw = 0.0, ssb = 0.0;
-  for (const auto& [key, c] : cells) {
-    const int l = key.second;
-    const double d = c.first / c.second - sum[l] / n[l];
-    ssw += d * d;
-  }
-  for (int l = 0; l < L; ++l) {
-    if (n[l] == 0) continue;
-    const double d = sum[l] / n[l] - grand;
-    ssb += n[l] * d * d;
-  }
-  const double sigma_w2 = ssw / (S - levels);
-  const double msb = ssb / (levels - 1);
-  const double n0 = (S - sum_n2 / S) / (levels - 1);
-  const double sigma_u2 = (msb - sigma_w2) / std::max(1e-12, n0);
-  if (!(sigma_u2 > 0)) return kRemove;
-  const double per_cell = static_cast<double>(samples) / S;
-  return std::min(kRemove, per_cell * sigma_w2 / sigma_u2);
 }
 
 WindowScan MakeWindowScan(const std::vector<Term>& windows,
@@ -297,8 +220,7 @@ CvEval EvaluateWindowScan(const CvSetup& cv,
                           const CvEval& cur,
                           const Eigen::VectorXd& full_residuals,
                           const WindowScan& scan,
-                          int* chosen_all,
-                          const std::vector<PooledBlock>& pooled) {
+                          int* chosen_all) {
   CvEval ev;
   const int n = static_cast<int>(X_cur.rows());
   const int p = static_cast<int>(X_cur.cols());
@@ -327,7 +249,7 @@ CvEval EvaluateWindowScan(const CvSetup& cv,
     } else {
       X.col(p).setZero();
     }
-    const FoldModels m = FitFolds(X, cv.y, cv.fold_begin, pooled);
+    const FoldModels m = FitFolds(X, cv.y, cv.fold_begin);
     if (!m.ok) return CvEval();
     ev.models.beta[k] = m.beta[k];
     ev.models.sigma[k] = m.sigma[k];

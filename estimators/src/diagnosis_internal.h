@@ -42,9 +42,6 @@ struct Expansion {
   std::vector<Term> terms;  // fixed terms (empty for a window scan)
   std::vector<Term>
       scan;  // window scan: one of these is chosen on training data
-  /// The terms are a categorical column's levels, fitted with partial
-  /// pooling (PooledBlock) in every cross-validated fit.
-  bool pooled = false;
 };
 
 /// Rows to fit, grouped by fold, and the stroke bookkeeping of the CV.
@@ -72,20 +69,6 @@ CvSetup BuildCv(const StrokeData& data,
                 bool shuffle,
                 std::uint64_t seed);
 
-/// Partial pooling of a block of level columns (a categorical column's
-/// step basis: `count` indicator columns starting at column `first`, the
-/// first level being the reference): the fit adds the penalty
-/// lambda b' (I - 11' / (count + 1)) b on their coefficients, which in the
-/// reference coding is an iid random-effects prior on all count + 1 level
-/// effects, so the levels shrink toward their common mean (a BLUP) rather
-/// than toward the reference level. lambda (per fold, in squared-residual
-/// units of the samples: see PoolingLambda) 0 is the plain fit.
-struct PooledBlock {
-  int first = 0;
-  int count = 0;
-  std::vector<double> lambda;  // per fold
-};
-
 /// Coefficients fitted on each fold's training part (original scale).
 struct FoldModels {
   bool ok = false;
@@ -98,26 +81,7 @@ struct FoldModels {
 /// intercept. A tiny ridge keeps collinear and empty columns at 0.
 FoldModels FitFolds(const Eigen::MatrixXd& X,
                     const Eigen::VectorXd& y,
-                    const std::vector<int>& fold_begin,
-                    const std::vector<PooledBlock>& pooled = {});
-
-/// The random-effects penalty of a pooled block for the training rows of
-/// fold `k` (all rows when k < 0), from the residuals r of the model
-/// without the block, by the method of moments of a one-way layout whose
-/// units are (stroke, level) cells, so that samples sharing a stroke's
-/// offset and noise count as one observation: sigma_w^2 = within-level
-/// variance of the cell means, sigma_u^2 = (MSB - sigma_w^2) / n0 the
-/// variance of the level effects; lambda = (mean samples per cell)
-/// sigma_w^2 / sigma_u^2, i.e. a level's shrink factor is sigma_u^2 /
-/// (sigma_u^2 + sigma_w^2 / cells in the level). No between-level variance
-/// beyond the noise (sigma_u^2 <= 0) gives a penalty that removes the
-/// levels.
-double PoolingLambda(const CvSetup& cv,
-                     const Eigen::MatrixXd& X,
-                     int first,
-                     int count,
-                     const Eigen::VectorXd& r,
-                     int k);
+                    const std::vector<int>& fold_begin);
 
 /// Held-out performance of one model.
 struct CvEval {
@@ -129,9 +93,7 @@ struct CvEval {
   FoldModels models;
 };
 
-CvEval Evaluate(const CvSetup& cv,
-                const Eigen::MatrixXd& X,
-                const std::vector<PooledBlock>& pooled = {});
+CvEval Evaluate(const CvSetup& cv, const Eigen::MatrixXd& X);
 
 /// A window scan over one column: windows [edges[i], edges[j]) as level
 /// ranges, and each CV row's level (-1 outside all edges).
@@ -159,8 +121,7 @@ CvEval EvaluateWindowScan(const CvSetup& cv,
                           const CvEval& cur,
                           const Eigen::VectorXd& full_residuals,
                           const WindowScan& scan,
-                          int* chosen_all,
-                          const std::vector<PooledBlock>& pooled = {});
+                          int* chosen_all);
 
 /// One-sided paired t-test over per-stroke differences d (strokes with
 /// `use`); returns {t, p} for H1: mean d > 0.

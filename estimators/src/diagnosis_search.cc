@@ -62,7 +62,6 @@ Selection Select(const StrokeData& data,
   const std::vector<Expansion> expansions = BuildExpansions(
       data, cv.rows, form_inputs, options, &out.candidates, &out.skipped);
   std::vector<Term> current = baseline;
-  std::vector<PooledBlock> cur_pooled;  // pooled level blocks of `current`
   CvEval cur_eval = out.base_eval;
   std::set<std::string> used;
   const double base_mae = out.base_eval.mae;
@@ -70,44 +69,26 @@ Selection Select(const StrokeData& data,
     std::vector<CandidateTest> tests;
     std::vector<Expansion> exps;
     std::vector<CvEval> evals;
-    std::vector<std::vector<PooledBlock>> pools;  // per tested expansion
     const Eigen::MatrixXd X_cur = BuildDesign(data, current, cv.rows);
     Eigen::VectorXd full_residuals;
     auto try_expansion = [&](const Expansion& candidate) {
       Expansion e = candidate;
       CvEval ev;
-      std::vector<PooledBlock> pool = cur_pooled;
       if (!e.scan.empty()) {
         if (full_residuals.size() == 0)
           full_residuals = cv.y - X_cur * FitOls(X_cur, cv.y).beta;
         const WindowScan scan =
             MakeWindowScan(e.scan, *data.Column(e.cause), cv.rows);
         int chosen_window = -1;
-        ev = EvaluateWindowScan(cv,
-                                X_cur,
-                                cur_eval,
-                                full_residuals,
-                                scan,
-                                &chosen_window,
-                                cur_pooled);
+        ev = EvaluateWindowScan(
+            cv, X_cur, cur_eval, full_residuals, scan, &chosen_window);
         if (chosen_window < 0) return;
         e.terms = {e.scan[chosen_window]};
       } else {
         Eigen::MatrixXd X(X_cur.rows(), X_cur.cols() + e.terms.size());
         X.leftCols(X_cur.cols()) = X_cur;
         X.rightCols(e.terms.size()) = BuildDesign(data, e.terms, cv.rows);
-        if (e.pooled && cur_eval.models.ok) {
-          PooledBlock blk;
-          blk.first = static_cast<int>(X_cur.cols());
-          blk.count = static_cast<int>(e.terms.size());
-          for (int k = 0; k < cv.folds; ++k) {
-            const Eigen::VectorXd r = cv.y - X_cur * cur_eval.models.beta[k];
-            blk.lambda.push_back(
-                PoolingLambda(cv, X, blk.first, blk.count, r, k));
-          }
-          pool.push_back(std::move(blk));
-        }
-        ev = Evaluate(cv, X, pool);
+        ev = Evaluate(cv, X);
       }
       // Reference: the current model, plus the main effects an interaction
       // brings along.
@@ -118,7 +99,7 @@ Selection Select(const StrokeData& data,
         Eigen::MatrixXd X(X_cur.rows(), X_cur.cols() + mains.size());
         X.leftCols(X_cur.cols()) = X_cur;
         X.rightCols(mains.size()) = BuildDesign(data, mains, cv.rows);
-        ev_main = Evaluate(cv, X, cur_pooled);
+        ev_main = Evaluate(cv, X);
         if (ev_main.ok) ref = &ev_main;
       }
       CandidateTest t;
@@ -137,7 +118,6 @@ Selection Select(const StrokeData& data,
       tests.push_back(std::move(t));
       exps.push_back(std::move(e));
       evals.push_back(std::move(ev));
-      pools.push_back(std::move(pool));
     };
     for (const Expansion& candidate : expansions) {
       if (!used.count(candidate.cause)) try_expansion(candidate);
@@ -204,7 +184,6 @@ Selection Select(const StrokeData& data,
       out.chosen_gain.push_back(100.0 * (cur_eval.mae - evals[best].mae) /
                                 base_mae);
       current.insert(current.end(), e.terms.begin(), e.terms.end());
-      cur_pooled = pools[best];
       used.insert(e.cause);
     }
     CvEval next = best >= 0 ? evals[best] : CvEval();
@@ -331,25 +310,12 @@ OuterChain EvaluateChain(const StrokeData& data,
     const Selection& sel = fold_sel[o];
     std::vector<Term> terms = baseline;
     std::set<std::string> used_stand_in;
-    std::vector<PooledBlock> pooled, pending;
-    Eigen::MatrixXd X_prev;
-    Eigen::VectorXd beta_prev;
-    auto add = [&](const Expansion& e) {
-      if (e.pooled) {
-        PooledBlock blk;
-        blk.first = static_cast<int>(terms.size());
-        blk.count = static_cast<int>(e.terms.size());
-        blk.lambda.assign(outer.folds, 0.0);
-        pending.push_back(std::move(blk));
-      }
-      terms.insert(terms.end(), e.terms.begin(), e.terms.end());
-    };
     for (std::size_t i = 0; i <= m; ++i) {
       if (i > 0) {
         bool found = false;
         for (const Expansion& e : sel.chosen) {
           if (e.cause != causes[i - 1]) continue;
-          add(e);
+          terms.insert(terms.end(), e.terms.begin(), e.terms.end());
           ++c.folds_selected[i - 1];
           found = true;
         }
@@ -365,27 +331,17 @@ OuterChain EvaluateChain(const StrokeData& data,
                   causes.end() ||
               used_stand_in.count(e.cause))
             continue;
-          add(e);
+          terms.insert(terms.end(), e.terms.begin(), e.terms.end());
           used_stand_in.insert(e.cause);
           found = true;
         }
       }
       const Eigen::MatrixXd X = BuildDesign(data, terms, outer.rows);
-      // Pooled levels added in this step: their penalty from fold o's
-      // training residuals of the model before them.
-      for (PooledBlock& blk : pending) {
-        const Eigen::VectorXd r = outer.y - X_prev * beta_prev;
-        blk.lambda[o] = PoolingLambda(outer, X, blk.first, blk.count, r, o);
-        pooled.push_back(std::move(blk));
-      }
-      pending.clear();
-      const FoldModels fm = FitFolds(X, outer.y, outer.fold_begin, pooled);
+      const FoldModels fm = FitFolds(X, outer.y, outer.fold_begin);
       if (!fm.ok) {
         c.ok = false;
         return c;
       }
-      X_prev = X;
-      beta_prev = fm.beta[o];
       const double s2 = std::max(1e-300, fm.sigma[o] * fm.sigma[o]);
       const double ll0 = -0.5 * std::log(2.0 * M_PI * s2);
       for (int e = outer.fold_begin[o]; e < outer.fold_begin[o + 1]; ++e) {

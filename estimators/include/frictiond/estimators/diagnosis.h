@@ -129,14 +129,6 @@ struct DiagnosisOptions {
   double min_relative_span = 0.02;
   /// Columns never tested as causes.
   std::vector<std::string> exclude_candidates;
-  /// A categorical column's levels (at most `bins` distinct values) are
-  /// fitted with partial pooling in every cross-validated fit: an iid
-  /// random-effects prior on the level effects, its variance against the
-  /// within-level variance of the (stroke, level) cell means estimated on
-  /// each fold's training strokes (method of moments), so that levels with
-  /// few strokes shrink toward the common mean instead of costing held-out
-  /// error. The served coefficients are the plain fit (docs/diagnosis.md).
-  bool pool_levels = false;
   /// Bins of the step basis for localized effects (>= 2).
   int bins = 8;
   /// Decay times of the slip-onset transient basis [s].
