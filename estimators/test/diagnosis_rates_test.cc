@@ -142,7 +142,9 @@ void PrintTable(const std::vector<Row>& rows, const std::string& title) {
 /// (docs/diagnosis.md, "Where it fails"); those kinds are held to the rate
 /// measured over 50 seeds, so that a regression still fails.
 double Goal(const std::string& kind) {
-  if (kind == "categorical") return 0.75;  // 50 seeds: 80 %
+  // Gaussian level shifts, which can be arbitrarily small (50 seeds: 80 %);
+  // categorical_bounded (shifts' sd 0.04-0.06) is held to the goal.
+  if (kind == "categorical") return 0.75;
   return 0.9;
 }
 
@@ -176,7 +178,8 @@ TEST(DiagnosisRatesTest, WiderFamiliesNamedFirst) {
   for (WideKind kind : {WideKind::kSmoothCurve,
                         WideKind::kInteraction,
                         WideKind::kSpread,
-                        WideKind::kCategorical}) {
+                        WideKind::kCategorical,
+                        WideKind::kCategoricalBounded}) {
     Row row;
     row.kind = testing::ToString(kind);
     if (!Wanted(row.kind)) continue;
