@@ -295,6 +295,7 @@ OuterChain EvaluateChain(const StrokeData& data,
                          const CvSetup& outer,
                          const std::vector<Term>& baseline,
                          const std::vector<std::string>& causes,
+                         const std::vector<std::vector<std::string>>& stand_ins,
                          const std::vector<Selection>& fold_sel) {
   OuterChain c;
   const std::size_t m = causes.size();
@@ -308,12 +309,31 @@ OuterChain EvaluateChain(const StrokeData& data,
   for (int o = 0; o < outer.folds; ++o) {
     const Selection& sel = fold_sel[o];
     std::vector<Term> terms = baseline;
+    std::set<std::string> used_stand_in;
     for (std::size_t i = 0; i <= m; ++i) {
       if (i > 0) {
+        bool found = false;
         for (const Expansion& e : sel.chosen) {
           if (e.cause != causes[i - 1]) continue;
           terms.insert(terms.end(), e.terms.begin(), e.terms.end());
           ++c.folds_selected[i - 1];
+          found = true;
+        }
+        // A fold that chose, instead, a candidate the data cannot tell
+        // apart from this finding (its alternatives; not itself in the
+        // chain, not used by this fold for an earlier finding) contributes
+        // that choice: the fold's selection made the same step.
+        for (std::size_t j = 0; !found && j < sel.chosen.size(); ++j) {
+          const Expansion& e = sel.chosen[j];
+          const auto& alt = stand_ins[i - 1];
+          if (std::find(alt.begin(), alt.end(), e.cause) == alt.end() ||
+              std::find(causes.begin(), causes.end(), e.cause) !=
+                  causes.end() ||
+              used_stand_in.count(e.cause))
+            continue;
+          terms.insert(terms.end(), e.terms.begin(), e.terms.end());
+          used_stand_in.insert(e.cause);
+          found = true;
         }
       }
       const Eigen::MatrixXd X = BuildDesign(data, terms, outer.rows);
@@ -625,6 +645,12 @@ DiagnosisResult RunDiagnosis(const StrokeData& data,
   std::vector<int> kept;
   for (std::size_t i = 0; i < sel.chosen.size(); ++i)
     kept.push_back(static_cast<int>(i));
+  // Each proposal's alternatives (candidates of its step the data cannot
+  // tell apart from it): an outer fold whose selection chose one of them
+  // instead is scored with that choice (see EvaluateChain).
+  std::vector<std::vector<Alternative>> alternatives(sel.chosen.size());
+  for (std::size_t i = 0; i < sel.chosen.size() && i < sel.steps.size(); ++i)
+    alternatives[i] = FindAlternatives(data, inner_all, sel.steps[i], options);
   const std::size_t m_tested = sel.chosen.size();
   OuterChain chain;
   std::vector<double> p_holm;
@@ -632,8 +658,16 @@ DiagnosisResult RunDiagnosis(const StrokeData& data,
   // m_tested + 1 passes; the last one evaluates the final list.
   for (std::size_t pass = 0; pass <= m_tested + 1; ++pass) {
     std::vector<std::string> causes;
-    for (int i : kept) causes.push_back(sel.chosen[i].cause);
-    chain = EvaluateChain(data, outer, baseline, causes, fold_sel);
+    std::vector<std::vector<std::string>> stand_ins;
+    for (int i : kept) {
+      causes.push_back(sel.chosen[i].cause);
+      stand_ins.emplace_back();
+      if (options.outer_alternatives) {
+        for (const Alternative& a : alternatives[i])
+          stand_ins.back().push_back(a.cause);
+      }
+    }
+    chain = EvaluateChain(data, outer, baseline, causes, stand_ins, fold_sel);
     if (!chain.ok) {
       result.status = DiagnosisStatus::kFailed;
       result.why = "an outer-fold model could not be fitted";
@@ -673,9 +707,7 @@ DiagnosisResult RunDiagnosis(const StrokeData& data,
     f.log_likelihood_gain = (chain.ll[k + 1] - chain.ll[k]) / n_outer;
     f.selection_bias_pct = sel.chosen_gain[kept[k]] - f.cv_mae_gain_pct;
     f.folds_selected = chain.folds_selected[k];
-    if (kept[k] < static_cast<int>(sel.steps.size()))
-      f.alternatives =
-          FindAlternatives(data, inner_all, sel.steps[kept[k]], options);
+    f.alternatives = alternatives[kept[k]];
     result.findings.push_back(std::move(f));
     current.insert(current.end(), e.terms.begin(), e.terms.end());
     chosen.push_back(e);

@@ -45,6 +45,13 @@ int Seeds() {
   return env ? std::max(1, std::atoi(env)) : 20;
 }
 
+/// FRICTIOND_DIAGNOSIS_FIRST_SEED=101 runs seeds 101.. instead of 1.. (the
+/// tuning seeds of docs/diagnosis.md; unset = 1, as in CI and the table).
+int FirstSeed() {
+  const char* env = std::getenv("FRICTIOND_DIAGNOSIS_FIRST_SEED");
+  return env ? std::max(1, std::atoi(env)) : 1;
+}
+
 /// FRICTIOND_DIAGNOSIS_KINDS=a,b runs only those kinds (while iterating;
 /// unset = every kind, as in CI).
 bool Wanted(const std::string& kind) {
@@ -135,7 +142,9 @@ void PrintTable(const std::vector<Row>& rows, const std::string& title) {
 /// (docs/diagnosis.md, "Where it fails"); those kinds are held to the rate
 /// measured over 50 seeds, so that a regression still fails.
 double Goal(const std::string& kind) {
-  if (kind == "categorical") return 0.75;  // 50 seeds: 80 %
+  // Gaussian level shifts, which can be arbitrarily small (50 seeds: 80 %);
+  // categorical_bounded (shifts' sd 0.04-0.06) is held to the goal.
+  if (kind == "categorical") return 0.75;
   return 0.9;
 }
 
@@ -169,11 +178,12 @@ TEST(DiagnosisRatesTest, WiderFamiliesNamedFirst) {
   for (WideKind kind : {WideKind::kSmoothCurve,
                         WideKind::kInteraction,
                         WideKind::kSpread,
-                        WideKind::kCategorical}) {
+                        WideKind::kCategorical,
+                        WideKind::kCategoricalBounded}) {
     Row row;
     row.kind = testing::ToString(kind);
     if (!Wanted(row.kind)) continue;
-    for (int seed = 1; seed <= seeds; ++seed) {
+    for (int seed = FirstSeed(); seed < FirstSeed() + seeds; ++seed) {
       const testing::WideCase c = GenerateWideCase(kind, seed, kStrokes);
       const DiagnosisOptions o = Options();
       const DiagnosisResult r =
@@ -207,7 +217,7 @@ TEST(DiagnosisRatesTest, OriginalEffectsNamedFirst) {
     row.kind = testing::ToString(effect);
     if (!Wanted(row.kind)) continue;
     const std::string cause = testing::PlantedCause(effect);
-    for (int seed = 1; seed <= seeds; ++seed) {
+    for (int seed = FirstSeed(); seed < FirstSeed() + seeds; ++seed) {
       PlantedSpec spec;
       spec.effect = effect;
       spec.strokes = kStrokes;
@@ -254,7 +264,7 @@ TEST(DiagnosisRatesTest, NullFalseAlarms) {
     Row row;
     row.kind = testing::ToString(kind);
     if (!Wanted(row.kind)) continue;
-    for (int seed = 1; seed <= seeds; ++seed) {
+    for (int seed = FirstSeed(); seed < FirstSeed() + seeds; ++seed) {
       const testing::WideCase c = GenerateWideCase(kind, seed, kStrokes);
       const DiagnosisOptions o = Options();
       const DiagnosisResult r =
@@ -267,7 +277,7 @@ TEST(DiagnosisRatesTest, NullFalseAlarms) {
   if (Wanted("null_eq1_6_columns")) {
     Row row;
     row.kind = "null_eq1_6_columns";
-    for (int seed = 1; seed <= seeds; ++seed) {
+    for (int seed = FirstSeed(); seed < FirstSeed() + seeds; ++seed) {
       PlantedSpec spec;
       spec.strokes = kStrokes;
       spec.noise_columns = 6;

@@ -212,6 +212,8 @@ std::string ToString(WideKind kind) {
       return "null_ar_noise";
     case WideKind::kNullManyColumns:
       return "null_many_columns";
+    case WideKind::kCategoricalBounded:
+      return "categorical_bounded";
   }
   return "unknown";
 }
@@ -222,7 +224,10 @@ bool IsNull(WideKind kind) {
 }
 
 WideCase GenerateWideCase(WideKind kind, std::uint64_t seed, int strokes) {
-  std::mt19937_64 rng(seed * 7919 + static_cast<std::uint64_t>(kind));
+  // kCategoricalBounded draws what kCategorical draws (same stream).
+  const WideKind stream =
+      kind == WideKind::kCategoricalBounded ? WideKind::kCategorical : kind;
+  std::mt19937_64 rng(seed * 7919 + static_cast<std::uint64_t>(stream));
   std::uniform_real_distribution<double> unif(0.0, 1.0);
   std::normal_distribution<double> normal(0.0, 1.0);
   PlantedSpec spec;
@@ -302,7 +307,8 @@ WideCase GenerateWideCase(WideKind kind, std::uint64_t seed, int strokes) {
           "eps scale x exp(" + std::to_string(growth) + " " + name + ")";
       break;
     }
-    case WideKind::kCategorical: {
+    case WideKind::kCategorical:
+    case WideKind::kCategoricalBounded: {
       const int levels = 3 + static_cast<int>(unif(rng) * 3) % 3;
       std::vector<double> code(levels), shift(levels);
       for (int l = 0; l < levels; ++l) {
@@ -311,6 +317,18 @@ WideCase GenerateWideCase(WideKind kind, std::uint64_t seed, int strokes) {
       }
       std::vector<int> level(strokes);
       for (int& l : level) l = static_cast<int>(unif(rng) * levels) % levels;
+      if (kind == WideKind::kCategoricalBounded) {
+        // The same pattern of shifts, centred and scaled to a standard
+        // deviation over the strokes drawn from 0.04-0.06 (drawn last, so
+        // everything above matches kCategorical's draws).
+        double m = 0.0, ss = 0.0;
+        for (int l : level) m += shift[l];
+        m /= strokes;
+        for (int l : level) ss += (shift[l] - m) * (shift[l] - m);
+        const double target = 0.04 + 0.02 * unif(rng);
+        const double scale = target / std::max(1e-12, std::sqrt(ss / strokes));
+        for (double& s : shift) s = (s - m) * scale;
+      }
       for (std::size_t i = 0; i < n; ++i) {
         const int l = level[d.stroke[i]];
         z[i] = code[l];
@@ -318,7 +336,8 @@ WideCase GenerateWideCase(WideKind kind, std::uint64_t seed, int strokes) {
       }
       out.cause = name;
       out.kind = "covariate";
-      out.truth = std::to_string(levels) + " levels of " + name;
+      out.truth = std::to_string(levels) + " levels of " + name + ", shifts";
+      for (double s : shift) out.truth += " " + std::to_string(s);
       break;
     }
     case WideKind::kNullHeavyTail: {

@@ -111,6 +111,12 @@ struct DiagnosisOptions {
   /// finding the selection proposes is then tested on the outer folds,
   /// Holm over the findings, at `alpha`).
   double selection_alpha = 0.05;
+  /// Outer test of a finding: an outer fold whose own selection did not
+  /// choose the finding's cause but one of its alternatives (a candidate
+  /// the selection on all strokes could not tell apart from it) is scored
+  /// with that choice instead of contributing no gain (issue 18, third
+  /// rates round). False: such folds contribute nothing (before).
+  bool outer_alternatives = true;
   /// Smallest held-out MAE gain that counts, in % of the baseline cv_mae.
   double min_gain_pct = 1.0;
   /// At most this many findings (greedy steps).

@@ -96,6 +96,12 @@ enum class WideKind {
   kNullOffsets,      ///< nothing planted; per-stroke offsets sd 0.15 (5x)
   kNullArNoise,      ///< nothing planted; AR(1) noise with rho 0.995
   kNullManyColumns,  ///< nothing planted; 20 irrelevant columns
+  /// As kCategorical (same seed: same levels, codes and pattern of shifts),
+  /// but the shifts are rescaled so that their standard deviation over the
+  /// strokes is drawn from 0.04-0.06 (bounded away from zero, as the other
+  /// kinds' sizes are; kCategorical's Gaussian shifts can be arbitrarily
+  /// small, e.g. seed 119: level means within 0.006 of each other).
+  kCategoricalBounded,
 };
 /// Short name ("smooth_curve", ..., "null_many_columns").
 std::string ToString(WideKind kind);
