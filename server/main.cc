@@ -24,13 +24,16 @@ namespace {
 /// (madvise) after each upload, so the next upload page-faults the same
 /// memory in again: profiled on `bench/run upload_parallel`, page faults,
 /// madvise and malloc took about a quarter of the daemon's CPU per upload.
-/// Blocks below 16 MiB now come from the arenas, and an arena keeps up to
-/// 32 MiB of free top for the next upload. The cost is memory held, bounded
-/// by that per arena; memory in use is unchanged (`bench/soak` measures
-/// RSS). GLIBC_TUNABLES cannot override this (it is applied after them).
+/// Blocks below 8 MiB now come from the arenas, an arena keeps up to
+/// 16 MiB of free top for the next upload, and there are at most 4 arenas
+/// (glibc's default is 8 per core; the daemon's threads mostly wait). The
+/// cost is memory held, at most 4 x 16 MiB; memory in use is unchanged
+/// (`bench/soak` measures RSS growth). GLIBC_TUNABLES cannot override this
+/// (it is applied after them).
 void TuneAllocator() {
-  mallopt(M_MMAP_THRESHOLD, 16 << 20);
-  mallopt(M_TRIM_THRESHOLD, 32 << 20);
+  mallopt(M_ARENA_MAX, 4);
+  mallopt(M_MMAP_THRESHOLD, 8 << 20);
+  mallopt(M_TRIM_THRESHOLD, 16 << 20);
 }
 
 }  // namespace
