@@ -7,7 +7,6 @@
 #include <fstream>
 #include <future>
 #include <sstream>
-#include <thread>
 
 #include "frictiond/estimators/identification.h"
 #include "frictiond/estimators/stroke_csv.h"
@@ -605,17 +604,6 @@ FrictionLibrary::ModelSetFit FrictionLibrary::FitModelSet(
   };
   MaterialIdentificationOptions id_options;
   id_options.fit = fit_options;
-  // Two threads while at most half the cores are fitting, else one: two
-  // uploads on two cores then run side by side instead of four threads
-  // taking turns (the results are the same either way).
-  struct InFlight {
-    std::atomic<int>& n;
-    const int count = ++n;
-    ~InFlight() { --n; }
-  } in_flight{fits_in_flight_};
-  const int cores =
-      static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  id_options.threads = 2 * in_flight.count <= cores ? 2 : 1;
   const StrokePlanOptions& plan = options_.plan;
   id_options.reference = {
       plan.fn_min_n, plan.fn_max_n, plan.v_min_mm_s, plan.v_max_mm_s};

@@ -303,9 +303,6 @@ class FrictionLibrary {
   // pairs' parsed uploads.
   std::unique_ptr<Ingestor> ingestor_;
   std::vector<std::pair<std::string, FamilyFitter>> fitters_;
-  // Fits running now (FitModelSet): a fit takes a second thread only while
-  // that leaves a core for each of the others.
-  mutable std::atomic<int> fits_in_flight_{0};
   std::mutex listeners_mu_;
   std::vector<ModelListener> listeners_;
   // Bumped by every invalidation: a store read that raced with one is not
