@@ -1,12 +1,14 @@
 #include "frictiond/estimators/eps_time.h"
 
 #include <cmath>
+#include <cstdio>
 #include <random>
 #include <vector>
 
 #include <gtest/gtest.h>
 
 #include "frictiond/estimators/stats.h"
+#include "frictiond/estimators/stochastic_model.h"
 
 namespace frictiond {
 namespace {
@@ -47,6 +49,47 @@ TEST(EpsTime, SurvivalMatchesClosedForms) {
     EXPECT_NEAR(
         CalcAr1Survival(0.0, 2, phi), 0.25 + std::asin(phi) / (2 * M_PI), 5e-6)
         << phi;
+  }
+}
+
+// An offset decomposition with normal G (sd sqrt(f)) and H (sd sqrt(1 - f)):
+// quantiles at EpsQuantileLevels(), exponential tails (no GPD fit).
+EpsTimeModel GaussianDecomposition(double phi, double f) {
+  EpsTimeModel t;
+  t.valid = true;
+  t.dt_s = 0.01;
+  t.phi = phi;
+  t.offset_fraction = f;
+  t.offset.valid = true;
+  for (double p : EpsQuantileLevels()) {
+    t.offset.offset_quantiles.push_back(std::sqrt(f) * NormalQuantile(p));
+    t.offset.within_quantiles.push_back(std::sqrt(1 - f) * NormalQuantile(p));
+  }
+  return t;
+}
+
+TEST(EpsTime, GaussianDecompositionMatchesCopula) {
+  // With normal G and H, Y_t = a + u_t is the copula's z_t: the hold's
+  // probability must match CalcHoldCrossingProbability (up to the stored
+  // quantiles' interpolation).
+  for (double f : {0.3, 0.877}) {
+    const EpsTimeModel t = GaussianDecomposition(0.967, f);
+    for (int n : {101, 501}) {
+      for (double p : {0.0005, 0.002, 0.01}) {
+        const double old = CalcHoldCrossingProbability(
+            NormalQuantile(p), n, t.phi, t.offset_fraction);
+        const double now = CalcHoldSlipFromInstant(p, n, t);
+        std::printf("f %.3f n %d p %.4f: copula %.5f decomposition %.5f\n",
+                    f,
+                    n,
+                    p,
+                    old,
+                    now);
+        // 6 %: the stored quantiles' exponential tails below the 0.001
+        // level (a normal tail is lighter) and their linear interpolation.
+        EXPECT_NEAR(now, old, 0.06 * old) << f << " " << n << " " << p;
+      }
+    }
   }
 }
 
