@@ -275,11 +275,119 @@ double StoredCdf(const std::vector<double>& q,
 void CheckOffsetModel(const EpsTimeModel& t) {
   const std::size_t levels = EpsQuantileLevels().size();
   if (!t.offset.valid || t.offset.offset_quantiles.size() != levels ||
-      t.offset.within_quantiles.size() != levels)
+      t.offset.within_quantiles.size() != levels ||
+      (!t.offset.innovation_quantiles.empty() &&
+       t.offset.innovation_quantiles.size() != levels))
     throw std::invalid_argument(
         "eps_time.offset_decomposition: not identified (no valid offset and "
         "within-episode quantiles)");
 }
+
+// S_n(b) = P(u_0..u_{n-1} >= b) of the linear AR(1) u_t = phi u_{t-1} +
+// e_t, e_t ~ E i.i.d. (the stored innovation quantiles), u_0 ~ H: a Markov
+// chain on cells of width h over [lo, hi] (cell-averaged transition
+// probabilities from E's CDF, mass below b absorbed), iterated until the
+// quasi-stationary decay rate has converged, then geometric (as
+// CalcAr1Survival). Tabulated at cell boundaries b_k, interpolated in
+// log(-log S).
+class LinearSurvivalTable {
+ public:
+  LinearSurvivalTable() = default;
+  LinearSurvivalTable(const EpsOffsetModel& m, double phi, int n) : n_(n) {
+    const auto& levels = EpsQuantileLevels();
+    auto level_index = [&](double p) {
+      return static_cast<std::size_t>(
+          std::lower_bound(levels.begin(), levels.end(), p - 1e-12) -
+          levels.begin());
+    };
+    const std::vector<double>& qh = m.within_quantiles;
+    const double sd_u =
+        std::max(1e-300, 0.5 * (qh[level_index(0.84)] - qh[level_index(0.16)]));
+    auto h_cdf = [&](double x) {
+      return StoredCdf(qh, m.within_tail_xi, m.within_tail_scale, x);
+    };
+    auto e_cdf = [&](double x) {
+      return StoredCdf(m.innovation_quantiles,
+                       m.innovation_tail_xi,
+                       m.innovation_tail_scale,
+                       x);
+    };
+    // Grid: from H's 1e-7 quantile (floored at -12 sd) to 8 sd above its
+    // top quantile; at most kCells cells, at most a fifth of e's sd wide.
+    lo_ = std::max(
+        StoredQuantile(qh, m.within_tail_xi, m.within_tail_scale, 1e-7),
+        qh[level_index(0.5)] - 12 * sd_u);
+    const double hi = qh.back() + 8 * sd_u;
+    const double sd_e = sd_u * std::sqrt(std::max(1e-6, 1 - phi * phi));
+    h_ = std::max(sd_e / 5, (hi - lo_) / kCells);
+    const int cells = static_cast<int>(std::ceil((hi - lo_) / h_));
+    // P[i][j]: from the centre of cell i into cell j.
+    std::vector<double> kernel(static_cast<std::size_t>(cells) * cells);
+    std::vector<double> edge(cells + 1);
+    for (int i = 0; i < cells; ++i) {
+      const double x = lo_ + (i + 0.5) * h_;
+      for (int j = 0; j <= cells; ++j) edge[j] = e_cdf(lo_ + j * h_ - phi * x);
+      for (int j = 0; j < cells; ++j)
+        kernel[static_cast<std::size_t>(i) * cells + j] = edge[j + 1] - edge[j];
+    }
+    std::vector<double> start(cells), mass(cells), next(cells);
+    for (int j = 0; j < cells; ++j)
+      start[j] = h_cdf(lo_ + (j + 1) * h_) - h_cdf(lo_ + j * h_);
+    // Table at every kStride-th boundary (b_k = lo_ + k h).
+    stride_ = std::max(1, cells / kPoints);
+    for (int k0 = 0; k0 < cells; k0 += stride_) {
+      double surv = 0;
+      for (int j = k0; j < cells; ++j) surv += start[j];
+      std::copy(start.begin(), start.end(), mass.begin());
+      double last_ratio = -1;
+      int stable = 0;
+      for (int t = 1; t < n && surv > 1e-300; ++t) {
+        std::fill(next.begin() + k0, next.end(), 0.0);
+        for (int i = k0; i < cells; ++i) {
+          const double a = mass[i];
+          if (a == 0.0) continue;
+          const double* row =
+              kernel.data() + static_cast<std::size_t>(i) * cells;
+          for (int j = k0; j < cells; ++j) next[j] += a * row[j];
+        }
+        double total = 0;
+        for (int j = k0; j < cells; ++j) total += next[j];
+        const double ratio = surv > 0 ? total / surv : 0.0;
+        mass.swap(next);
+        surv = total;
+        if (std::fabs(ratio - last_ratio) < 1e-10 * ratio) {
+          if (++stable >= 3) {
+            surv *= std::pow(ratio, n - 1 - t);
+            break;
+          }
+        } else {
+          stable = 0;
+        }
+        last_ratio = ratio;
+      }
+      const double l = surv > 1e-300 ? -std::log(surv) : 690.0;
+      y_.push_back(std::log(std::max(l, 1e-300)));
+    }
+    // Below the grid: at most n independent looks.
+    h_lo_ = h_cdf(lo_);
+  }
+
+  double operator()(double b) const {
+    if (!(b >= lo_)) return std::max(0.0, 1.0 - n_ * h_lo_);
+    const double u = (b - lo_) / (h_ * stride_);
+    const int nb = static_cast<int>(y_.size());
+    if (u >= nb - 1) return std::exp(-std::exp(y_.back()));
+    const int k = static_cast<int>(u);
+    const double t = u - k;
+    return std::exp(-std::exp(y_[k] + t * (y_[k + 1] - y_[k])));
+  }
+
+ private:
+  static constexpr int kCells = 320, kPoints = 64;
+  int n_ = 1, stride_ = 1;
+  double lo_ = 0, h_ = 1, h_lo_ = 0;
+  std::vector<double> y_;
+};
 
 // The hold of n >= 2 samples under the offset decomposition:
 //   Y_t = a + u_t,  a ~ G once per episode,  u_t = H^-1(Phi(w_t)),
@@ -292,8 +400,10 @@ class OffsetHold {
   OffsetHold(const EpsTimeModel& t, int n) : t_(t), n_(n) {
     CheckPhi(n, t.phi);
     CheckOffsetModel(t);
-    if (n >= 2) survival_ = SurvivalTable(n, t.phi);
     const EpsOffsetModel& m = t.offset;
+    linear_ = !m.innovation_quantiles.empty();
+    if (n >= 2 && linear_) linear_survival_ = LinearSurvivalTable(m, t.phi, n);
+    if (n >= 2 && !linear_) survival_ = SurvivalTable(n, t.phi);
     constexpr int kIntervals = 850;  // step 0.02 in the normal score
     const double step = 17.0 / kIntervals;
     a_.resize(kIntervals + 1);
@@ -333,6 +443,10 @@ class OffsetHold {
   double Crossing(double y) const {
     double sum = 0;
     for (std::size_t j = 0; j < a_.size(); ++j) {
+      if (linear_) {
+        sum += w_[j] * linear_survival_(y - a_[j]);
+        continue;
+      }
       const double h = Within(y - a_[j]);
       if (h <= 1e-300) {  // S_n = exp(-n h) to far below rounding
         sum += w_[j];
@@ -376,7 +490,9 @@ class OffsetHold {
 
   const EpsTimeModel& t_;
   int n_;
+  bool linear_ = false;  // u_t a linear AR(1) (innovation quantiles)
   SurvivalTable survival_;
+  LinearSurvivalTable linear_survival_;
   std::vector<double> a_, w_;  // nodes and weights of G
   double y_lo_ = 0, y_hi_ = 0;
 };
@@ -471,55 +587,133 @@ double MeanVarianceFactor(int n, double phi) {
   return std::clamp((1 + 2 * tail) / n, 0.0, 1.0);
 }
 
+// Quantiles at EpsQuantileLevels() of the stationary law of the linear
+// AR(1) u_t = phi u_{t-1} + e_t, e_t ~ E (quantiles eq with their lower
+// tail): the chain on 560 cells over +-14 sd_u iterated from N(0, sd_u^2)
+// until phi^t < 1e-3 (the start's share of u_t is then negligible).
+std::vector<double> StationaryQuantiles(const std::vector<double>& eq,
+                                        double xi,
+                                        double scale,
+                                        double phi,
+                                        double sd_u) {
+  constexpr int kCells = 560;
+  const double lo = -14 * sd_u, h = 28 * sd_u / kCells;
+  std::vector<double> kernel(static_cast<std::size_t>(kCells) * kCells);
+  std::vector<double> edge(kCells + 1);
+  for (int i = 0; i < kCells; ++i) {
+    const double x = lo + (i + 0.5) * h;
+    for (int j = 0; j <= kCells; ++j)
+      edge[j] = j == 0 ? 0.0
+                : j == kCells
+                    ? 1.0  // the grid's ends keep the mass beyond them
+                    : StoredCdf(eq, xi, scale, lo + j * h - phi * x);
+    for (int j = 0; j < kCells; ++j)
+      kernel[static_cast<std::size_t>(i) * kCells + j] = edge[j + 1] - edge[j];
+  }
+  std::vector<double> mass(kCells), next(kCells);
+  for (int j = 0; j < kCells; ++j)
+    mass[j] =
+        NormalCdf((lo + (j + 1) * h) / sd_u) - NormalCdf((lo + j * h) / sd_u);
+  const int steps =
+      phi > 0 ? static_cast<int>(std::ceil(std::log(1e-3) / std::log(phi))) : 1;
+  for (int t = 0; t < steps; ++t) {
+    std::fill(next.begin(), next.end(), 0.0);
+    for (int i = 0; i < kCells; ++i) {
+      const double a = mass[i];
+      if (a < 1e-300) continue;
+      const double* row = kernel.data() + static_cast<std::size_t>(i) * kCells;
+      for (int j = 0; j < kCells; ++j) next[j] += a * row[j];
+    }
+    mass.swap(next);
+  }
+  // Quantiles: the CDF is linear within a cell.
+  std::vector<double> q;
+  double cdf = 0;
+  int j = 0;
+  for (double p : EpsQuantileLevels()) {
+    while (j < kCells - 1 && cdf + mass[j] < p) cdf += mass[j++];
+    const double w =
+        mass[j] > 0 ? std::clamp((p - cdf) / mass[j], 0.0, 1.0) : 0.5;
+    q.push_back(lo + (j + w) * h);
+  }
+  return q;
+}
+
 // The offset decomposition eps = a + u_t (eps_time.h) from the residuals
-// r (in time order, runs of `lengths`), their mean and variance and the
-// identified phi and f. Leaves *out not valid when f is 0 or 1, or fewer
-// than 100 episodes have a reliable mean or fewer than 1000 samples a
-// usable deviation.
+// r (in time order, runs of `lengths`), their mean and the identified phi
+// and f. Leaves *out not valid when f is 0 or 1, the offset variance is not
+// positive, or fewer than 100 episodes have a reliable mean or fewer than
+// 1000 samples a usable deviation.
 void FitOffsetModel(const std::vector<double>& r,
                     const std::vector<int>& lengths,
                     double mean,
-                    double var,
                     double phi,
                     double f,
                     EpsOffsetModel* out) {
   *out = EpsOffsetModel{};
   if (!(f > 0.0 && f < 1.0)) return;
-  const double var_a = f * var, var_u = (1 - f) * var;
-  std::vector<double> offsets, within, power;
-  offsets.reserve(lengths.size());
+  std::vector<double> offsets, within, innovations, power, means, factors;
+  means.reserve(lengths.size());
+  factors.reserve(lengths.size());
   within.reserve(r.size());
+  // Pass 1: episode means m_k, their variance factors c_k, deviations,
+  // innovations and the moments of both.
+  double sum_d2 = 0, sum_weight = 0, sum_m2 = 0, sum_c = 0;
   std::size_t i0 = 0;
   for (int len : lengths) {
     double sum = 0;
     for (int i = 0; i < len; ++i) sum += r[i0 + i];
     const double m = sum / len;
     const double c = MeanVarianceFactor(len, phi);
-    // Episode mean m = a + mean(u): variance var_a + c var_u. Scaling its
-    // deviation by sqrt(rho), rho = var_a / (var_a + c var_u), gives a's
-    // variance (exact for Gaussian a and u; for a heavy-tailed a the tail
-    // quantiles come out short by up to 1 - sqrt(rho)). Only episodes
-    // whose mean is mostly offset (rho >= 0.5) are used.
-    const double rho = var_a / (var_a + c * var_u);
-    if (rho >= 0.5) offsets.push_back(mean + (m - mean) * std::sqrt(rho));
+    means.push_back(m);
+    factors.push_back(c);
+    sum_m2 += (m - mean) * (m - mean);
+    sum_c += c;
     // A deviation u_t - mean(u) has variance v_t var_u with
     //   v_t = 1 - 2 k_t + c,  k_t = (1/n) sum_s phi^|t - s|
-    // (larger at the episode's ends): scaled back by 1 / sqrt(v_t), so
-    // that Gaussian u gives Gaussian deviations (a common scale would mix
-    // variances: heavier tails than u's). Samples with v_t < 0.25 skipped.
+    // (larger at the episode's ends; their mean over t is 1 - c): scaled
+    // back by 1 / sqrt(v_t), so that Gaussian u gives Gaussian deviations
+    // (a common scale would mix variances: heavier tails than u's).
+    // Samples with v_t < 0.25 skipped.
     if (len >= 2) {
       power.resize(len + 1);  // phi^j, j = 0..len (no underflow trouble)
       power[0] = 1.0;
       for (int j = 1; j <= len; ++j) power[j] = power[j - 1] * phi;
+      // Innovations of the linear AR(1) from the deviations (the episode
+      // mean leaves only (1 - phi) mean(u), small against e_t).
+      for (int i = 1; i < len; ++i)
+        innovations.push_back((r[i0 + i] - m) - phi * (r[i0 + i - 1] - m));
       for (int i = 0; i < len; ++i) {
+        const double d = r[i0 + i] - m;
+        sum_d2 += d * d;
         // sum_{s <= t} phi^(t-s) + sum_{s >= t} phi^(s-t) - 1
         const double k =
             ((1 - power[i + 1]) + (1 - power[len - i])) / (1 - phi) - 1;
         const double v = 1 - 2 * k / len + c;
-        if (v >= 0.25) within.push_back((r[i0 + i] - m) / std::sqrt(v));
+        if (v >= 0.25) within.push_back(d / std::sqrt(v));
       }
+      sum_weight += len * (1 - c);
     }
     i0 += len;
+  }
+  if (!(sum_weight > 0) || lengths.empty()) return;
+  // Method of moments on the variances: E sum_t d^2 = n (1 - c) var_u and
+  // E (m - mean)^2 = var_a + c var_u (no use of f: its estimate carries
+  // phi's small-sample bias).
+  const double var_u = sum_d2 / sum_weight;
+  const double episodes = static_cast<double>(lengths.size());
+  const double var_a = sum_m2 / episodes - sum_c / episodes * var_u;
+  if (!(var_a > 0)) return;
+  // Pass 2: an episode mean m = a + mean(u) has variance var_a + c var_u.
+  // Scaling its deviation by sqrt(rho), rho = var_a / (var_a + c var_u),
+  // gives a's variance (exact for Gaussian a and u; for a heavy-tailed a
+  // the far tail comes out short by up to 1 - sqrt(rho)). Only episodes
+  // whose mean is mostly offset (rho >= 0.5) are used.
+  offsets.reserve(lengths.size());
+  for (std::size_t k = 0; k < means.size(); ++k) {
+    const double rho = var_a / (var_a + factors[k] * var_u);
+    if (rho >= 0.5)
+      offsets.push_back(mean + (means[k] - mean) * std::sqrt(rho));
   }
   if (offsets.size() < 100 || within.size() < 1000) return;
   out->episodes_used = static_cast<int>(offsets.size());
@@ -527,6 +721,21 @@ void FitOffsetModel(const std::vector<double>& r,
   FitLowerTail(within, &out->within_tail_xi, &out->within_tail_scale);
   out->offset_quantiles = SelectQuantiles(&offsets, EpsQuantileLevels());
   out->within_quantiles = SelectQuantiles(&within, EpsQuantileLevels());
+  if (innovations.size() >= 1000) {
+    FitLowerTail(
+        innovations, &out->innovation_tail_xi, &out->innovation_tail_scale);
+    out->innovation_quantiles =
+        SelectQuantiles(&innovations, EpsQuantileLevels());
+    // H as the stationary law of that AR(1): consistent with the chain of
+    // the hold, and free of the deviations' rescaling (which inflates a
+    // heavy tail: one shock moves u_t fully but the episode mean little).
+    // The deviations' GPD tail shape is kept below the 0.001 level.
+    out->within_quantiles = StationaryQuantiles(out->innovation_quantiles,
+                                                out->innovation_tail_xi,
+                                                out->innovation_tail_scale,
+                                                phi,
+                                                std::sqrt(var_u));
+  }
   out->valid = true;
 }
 
@@ -616,7 +825,7 @@ EpsTimeModel FitEpsTimeModel(const std::vector<double>& residuals,
                &out.tail_xi,
                &out.tail_scale);
   FitOffsetModel(
-      residuals, lengths, mean, var, phi, out.offset_fraction, &out.offset);
+      residuals, lengths, mean, phi, out.offset_fraction, &out.offset);
   out.min_instant_risk = std::max(1e-6, 1.0 / n_eff);
   out.valid = true;
   return out;

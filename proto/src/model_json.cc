@@ -205,6 +205,12 @@ json StochasticModelToJson(const StochasticFrictionModel& model) {
         {"within_tail_xi", o.within_tail_xi},
         {"within_tail_scale", o.within_tail_scale},
         {"episodes_used", o.episodes_used}};
+    if (!o.innovation_quantiles.empty()) {
+      json& d = j["eps_time"]["offset_decomposition"];
+      d["innovation_quantiles"] = o.innovation_quantiles;
+      d["innovation_tail_xi"] = o.innovation_tail_xi;
+      d["innovation_tail_scale"] = o.innovation_tail_scale;
+    }
   }
   if (model.eps_scale) {
     // Heteroscedastic eps (eps_scale.h); absent: one scale (paper 000).
@@ -320,16 +326,23 @@ StochasticFrictionModel StochasticModelFromJson(const json& j) {
         return *xi >= -0.5 && *xi <= 1 && *scale >= 0 && std::isfinite(*scale);
       };
       EpsOffsetModel& d = e.offset;
-      offset_sane = quantiles("offset_quantiles", &d.offset_quantiles) &&
-                    quantiles("within_quantiles", &d.within_quantiles) &&
-                    tail("offset_tail_xi",
-                         "offset_tail_scale",
-                         &d.offset_tail_xi,
-                         &d.offset_tail_scale) &&
-                    tail("within_tail_xi",
-                         "within_tail_scale",
-                         &d.within_tail_xi,
-                         &d.within_tail_scale);
+      offset_sane =
+          quantiles("offset_quantiles", &d.offset_quantiles) &&
+          quantiles("within_quantiles", &d.within_quantiles) &&
+          tail("offset_tail_xi",
+               "offset_tail_scale",
+               &d.offset_tail_xi,
+               &d.offset_tail_scale) &&
+          tail("within_tail_xi",
+               "within_tail_scale",
+               &d.within_tail_xi,
+               &d.within_tail_scale) &&
+          (!o.contains("innovation_quantiles") ||
+           (quantiles("innovation_quantiles", &d.innovation_quantiles) &&
+            tail("innovation_tail_xi",
+                 "innovation_tail_scale",
+                 &d.innovation_tail_xi,
+                 &d.innovation_tail_scale)));
       d.episodes_used = static_cast<int>(
           std::clamp(GetNumberOr(o, "episodes_used", 0.0), 0.0, 2e9));
       d.valid = offset_sane;

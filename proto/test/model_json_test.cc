@@ -92,6 +92,10 @@ StochasticFrictionModel WithOffsetDecomposition() {
   o.offset_tail_scale = 0.02;
   o.within_tail_xi = -0.1;
   o.within_tail_scale = 0.004;
+  for (double p : EpsQuantileLevels())
+    o.innovation_quantiles.push_back(0.005 * (p - 0.5));
+  o.innovation_tail_xi = 0.25;
+  o.innovation_tail_scale = 0.001;
   o.episodes_used = 11;
   return m;
 }
@@ -118,12 +122,22 @@ TEST(ModelJson, OffsetDecompositionRoundTripsAndIsOptional) {
   EXPECT_EQ(b.offset_tail_scale, a.offset_tail_scale);
   EXPECT_EQ(b.within_tail_xi, a.within_tail_xi);
   EXPECT_EQ(b.within_tail_scale, a.within_tail_scale);
+  EXPECT_EQ(b.innovation_quantiles, a.innovation_quantiles);
+  EXPECT_EQ(b.innovation_tail_xi, a.innovation_tail_xi);
+  EXPECT_EQ(b.innovation_tail_scale, a.innovation_tail_scale);
   EXPECT_EQ(b.episodes_used, a.episodes_used);
+  // Without innovations (optional inside the decomposition): u_t is the
+  // Gaussian copula AR(1).
+  nlohmann::json j = StochasticModelToJson(m);
+  j["eps_time"]["offset_decomposition"].erase("innovation_quantiles");
+  const StochasticFrictionModel copula = StochasticModelFromJson(j);
+  EXPECT_TRUE(copula.eps_time.offset.valid);
+  EXPECT_TRUE(copula.eps_time.offset.innovation_quantiles.empty());
 }
 
 TEST(ModelJson, HostileOffsetDecompositionLeavesTimeModelInvalid) {
   const nlohmann::json good = StochasticModelToJson(WithOffsetDecomposition());
-  std::vector<nlohmann::json> bad(6, good);
+  std::vector<nlohmann::json> bad(7, good);
   auto& o0 = bad[0]["eps_time"]["offset_decomposition"];
   o0["offset_quantiles"].erase(0);  // one level short
   auto& o1 = bad[1]["eps_time"]["offset_decomposition"];
@@ -135,6 +149,8 @@ TEST(ModelJson, HostileOffsetDecompositionLeavesTimeModelInvalid) {
   auto& o4 = bad[4]["eps_time"]["offset_decomposition"];
   o4["offset_tail_scale"] = -1.0;
   bad[5]["eps_time"]["offset_decomposition"] = "not an object";
+  auto& o6 = bad[6]["eps_time"]["offset_decomposition"];
+  o6["innovation_quantiles"][0] = 1e300;  // decreasing afterwards
   for (std::size_t k = 0; k < bad.size(); ++k) {
     const StochasticFrictionModel m = StochasticModelFromJson(bad[k]);
     EXPECT_FALSE(m.eps_time.valid) << k;

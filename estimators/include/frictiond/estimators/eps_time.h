@@ -94,6 +94,13 @@ struct EpsOffsetModel {
   std::vector<double> within_quantiles;
   double within_tail_xi = 0.0;
   double within_tail_scale = 0.0;
+  /// E: innovations e_t of u_t read as a linear AR(1), u_t = phi u_{t-1} +
+  /// e_t (empty: u_t is the Gaussian copula AR(1) H^-1(Phi(w_t))). With
+  /// heavy-tailed e a large shock persists for ~1 / (1 - phi) samples,
+  /// which the copula (no tail dependence) cannot represent.
+  std::vector<double> innovation_quantiles;
+  double innovation_tail_xi = 0.0;
+  double innovation_tail_scale = 0.0;
   int episodes_used = 0;  ///< episodes behind G
 };
 
