@@ -710,16 +710,41 @@ void FitOffsetModel(const std::vector<double>& r,
   // the far tail comes out short by up to 1 - sqrt(rho)). Only episodes
   // whose mean is mostly offset (rho >= 0.5) are used.
   offsets.reserve(lengths.size());
+  std::vector<double> raw;
+  double noise = 0;  // mean c_k var_u over the episodes used
   for (std::size_t k = 0; k < means.size(); ++k) {
     const double rho = var_a / (var_a + factors[k] * var_u);
-    if (rho >= 0.5)
+    if (rho >= 0.5) {
       offsets.push_back(mean + (means[k] - mean) * std::sqrt(rho));
+      raw.push_back(means[k]);
+      noise += factors[k] * var_u;
+    }
   }
+  if (raw.empty()) return;
+  noise /= raw.size();
   if (offsets.size() < 100 || within.size() < 1000) return;
   out->episodes_used = static_cast<int>(offsets.size());
   FitLowerTail(offsets, &out->offset_tail_xi, &out->offset_tail_scale);
   FitLowerTail(within, &out->within_tail_xi, &out->within_tail_scale);
-  out->offset_quantiles = SelectQuantiles(&offsets, EpsQuantileLevels());
+  // G's quantiles: those of the raw means with the noise taken out level
+  // by level, q_a(p) - q_m(0.5) = sign sqrt((q_m(p) - q_m(0.5))^2 - z_p^2
+  // noise), z_p = Phi^-1(p): exact for Gaussian a; in a heavy tail, where
+  // the noise barely moves the quantiles, it barely shrinks them (variance
+  // matching would shrink every level by sqrt(rho) and widen a narrow
+  // body). Below the 0.001 level: the GPD of the variance-matched means.
+  {
+    const auto& levels = EpsQuantileLevels();
+    std::vector<double> q = SelectQuantiles(&raw, levels);
+    std::vector<double> median_only = {0.5};
+    const double med = SelectQuantiles(&raw, median_only)[0];
+    for (std::size_t k = 0; k < q.size(); ++k) {
+      const double d = q[k] - med, z = NormalQuantile(levels[k]);
+      const double d2 = std::max(0.0, d * d - z * z * noise);
+      q[k] = med + (d < 0 ? -1.0 : 1.0) * std::sqrt(d2);
+      if (k > 0) q[k] = std::max(q[k], q[k - 1]);
+    }
+    out->offset_quantiles = q;
+  }
   out->within_quantiles = SelectQuantiles(&within, EpsQuantileLevels());
   if (innovations.size() >= 1000) {
     FitLowerTail(

@@ -131,13 +131,10 @@ std::pair<int, int> BinomialInterval99(int n, double p) {
   return {lo, hi};
 }
 
-// two_sided_holds = false: for holds (hold_s > 0) only "never riskier than
-// requested" is required (slips <= the interval's upper end).
 void CheckServedRisk(const Truth& truth,
                      int strokes,
                      std::uint64_t seed,
-                     const std::string& label,
-                     bool two_sided_holds) {
+                     const std::string& label) {
   const StochasticFit fit =
       FitStochasticModel(TrainingStrokes(truth, strokes, seed));
   ASSERT_EQ(fit.status, FitStatus::kOk) << fit.why;
@@ -160,14 +157,6 @@ void CheckServedRisk(const Truth& truth,
       GripForceOptions o;
       o.hold_s = hold_s;
       const GripForce g = CalcGripForce(m, load, risk, o);
-      if (!two_sided_holds && g.status == GripForceStatus::kUnattainable) {
-        std::printf("| %s | %.3f | %.0f | unattainable: %s |\n",
-                    label.c_str(),
-                    risk,
-                    hold_s,
-                    g.why.c_str());
-        continue;
-      }
       ASSERT_EQ(g.status, GripForceStatus::kOk)
           << label << " risk " << risk << " hold " << hold_s << ": " << g.why;
       const int slips = CountSlips(
@@ -183,10 +172,8 @@ void CheckServedRisk(const Truth& truth,
                   static_cast<double>(slips) / kTrials,
                   lo,
                   hi);
-      if (two_sided_holds || hold_s == 0) {
-        EXPECT_GE(slips, lo) << label << " risk " << risk << " hold " << hold_s
-                             << " fn " << g.fn_n;
-      }
+      EXPECT_GE(slips, lo) << label << " risk " << risk << " hold " << hold_s
+                           << " fn " << g.fn_n;
       EXPECT_LE(slips, hi) << label << " risk " << risk << " hold " << hold_s
                            << " fn " << g.fn_n;
     }
@@ -194,17 +181,17 @@ void CheckServedRisk(const Truth& truth,
 }
 
 TEST(GripForce, ServedRiskHoldsForGaussianTruth) {
-  CheckServedRisk(Truth{}, 24000, 3, "gaussian", true);
+  CheckServedRisk(Truth{}, 24000, 3, "gaussian");
 }
 
 TEST(GripForce, ServedRiskHoldsForHeavyTailedTruth) {
   Truth t;
   t.t_dof = 4.0;
-  // The Gaussian copula has no tail dependence: with heavy-tailed offsets and
-  // innovations the extremes persist through a hold (one large offset or
-  // shock), so a hold has fewer independent chances to slip than the copula
-  // counts and the served force is conservative (docs/grip_force.md).
-  CheckServedRisk(t, 24000, 4, "student-t4", false);
+  // Heavy-tailed offsets persist through a hold and heavy-tailed shocks
+  // decay over ~1 / (1 - phi) samples: the offset decomposition with a
+  // linear AR(1) within part (eps_time.h) represents both; the Gaussian
+  // copula alone served holds 2x safer than requested (docs/grip_force.md).
+  CheckServedRisk(t, 24000, 4, "student-t4");
 }
 
 }  // namespace
