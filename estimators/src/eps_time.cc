@@ -539,6 +539,17 @@ double CalcWithinQuantile(const EpsTimeModel& t, double p) {
       m.within_quantiles, m.within_tail_xi, m.within_tail_scale, p);
 }
 
+double CalcInnovationQuantile(const EpsTimeModel& t, double p) {
+  CheckOffsetModel(t);
+  const EpsOffsetModel& m = t.offset;
+  if (m.innovation_quantiles.empty())
+    throw std::invalid_argument(
+        "eps_time.offset_decomposition: no innovation quantiles (u_t is the "
+        "Gaussian copula AR(1))");
+  return StoredQuantile(
+      m.innovation_quantiles, m.innovation_tail_xi, m.innovation_tail_scale, p);
+}
+
 double CalcOffsetSumCdf(const EpsTimeModel& t, double y) {
   return OffsetHold(t, 1).Cdf(y);
 }

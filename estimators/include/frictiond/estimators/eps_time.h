@@ -44,32 +44,51 @@
 /// Gaussian copula above has no tail dependence: with a heavy-tailed
 /// per-episode offset it treats an extreme offset as a passing excursion
 /// and counts too many independent chances in a hold (served holds slipped
-/// at 0.022 for a requested 0.05 over 5 s with Student-t(4) offsets). When
-/// the model carries EpsTimeModel::offset, the offset keeps its OWN
-/// (empirical, heavy-tailed allowed) distribution G:
+/// at 0.022 for a requested 0.05 over 5 s with Student-t(4) offsets and
+/// shocks). When the model carries EpsTimeModel::offset, the offset and the
+/// within-episode part keep their OWN (empirical, heavy-tailed allowed)
+/// distributions:
 ///
-///   Y_t = a + u_t,  a ~ G once per episode,  u_t = H^-1(Phi(w_t)),
-///   w_t the unit AR(1) above (same phi),  eps_t = F^-1(K(Y_t)),
+///   Y_t = a + u_t,  a ~ G once per episode,
+///   u_t = phi u_{t-1} + e_t,  e_t ~ E i.i.d.  (a linear AR(1); H: its
+///         stationary law; without stored E: u_t = H^-1(Phi(w_t)), w_t the
+///         copula's unit AR(1)),
+///   eps_t = F^-1(K(Y_t)),  K the CDF of Y_t (G convolved with H).
 ///
-/// H the within-episode marginal and K the CDF of Y_t (G convolved with H).
 /// The last map keeps F (the stored eps quantiles, their tail) as the
 /// marginal, so one instant is unchanged; the decomposition only sets how
 /// an instant's risk grows over a hold. A slip at eps level e is Y_t < y
-/// with y = K^-1(F(e)), and (paper 000 eq. (1), eps per instant, extended
-/// to a hold)
-///   P(slip during n samples) = 1 - E_a[ S_n(Phi^-1(H(y - a))) ],
-/// E_a by Simpson over a = G^-1(Phi(s)) in the normal score s (851 nodes),
-/// S_n = CalcAr1Survival tabulated. Identification (FitEpsTimeModel): phi
-/// and f as above (the autocorrelation of a + u_t is f + (1 - f) phi^k);
-/// G from the episode means m_k = a_k + mean(u), whose variance is
-/// var_a + c_k var_u (c_k = Var(mean of n_k AR(1) samples) / var_u):
-/// a_k ~ mean + (m_k - mean) sqrt(rho_k), rho_k = var_a / (var_a + c_k
-/// var_u) (variance matching; exact for Gaussian parts, slightly short in
-/// a heavy tail), episodes with rho_k >= 0.5 only; H from the deviations
-/// (r - m_k) / sqrt(1 - c_k) of episodes with c_k <= 0.75. Both get a
-/// generalised Pareto lower tail like eps's. A departure from the paper
-/// (which has one eps per instant) and from the copula above (kept for
-/// models without the decomposition).
+/// with y = K^-1(F(e)), and (paper 000 eq. (1) with its eps per instant,
+/// extended to a hold; section IV-A's risk read as the hold's)
+///   P(slip during n samples) = 1 - E_a[ S_n(y - a) ],
+/// S_n(b) = P(u_0..u_{n-1} >= b): with E, the first passage of the linear
+/// AR(1) as a Markov chain on cells of u (transition probabilities from
+/// E's CDF, started from H), iterated to its quasi-stationary decay rate
+/// and tabulated in b; without E, CalcAr1Survival at Phi^-1(H(b)). E_a is
+/// Simpson over a = G^-1(Phi(s)) in the normal score s (851 nodes).
+///
+/// Identification (FitEpsTimeModel), per episode k of n_k samples with
+/// mean m_k and c_k = Var(mean of n_k AR(1) samples) / var_u:
+///  - var_u = sum (r - m_k)^2 / sum n_k (1 - c_k),  var_a = mean (m_k -
+///    mean)^2 - mean(c_k) var_u (method of moments on the variances);
+///  - G: the quantiles of m_k over episodes whose mean is mostly offset
+///    (rho_k = var_a / (var_a + c_k var_u) >= 0.5), the noise taken out
+///    level by level: q_a(p) - med = sign(d) sqrt(d^2 - z_p^2 noise), d =
+///    q_m(p) - med, z_p = Phi^-1(p), noise = mean c_k var_u (exact for
+///    Gaussian a; in a heavy tail the noise barely moves the quantiles and
+///    they are barely shrunk); the GPD tail below 0.001 from the variance-
+///    matched means med + (m_k - med) sqrt(rho_k);
+///  - E: the quantiles of (r_t - m_k) - phi (r_{t-1} - m_k) (the episode
+///    mean removes a; (1 - phi) mean(u) is left, small), with a GPD tail;
+///  - H: the stationary law of u_t = phi u_{t-1} + e_t (the chain iterated
+///    from N(0, var_u) until phi^t < 1e-3), the GPD tail shape of the
+///    deviations (r - m_k) / sqrt(v_t) (v_t: their variance factor).
+/// Not identified (offset.valid = false, holds on the copula above) with
+/// f = 0 or 1, var_a <= 0, fewer than 100 usable episodes or fewer than
+/// 1000 deviations. Limits: G needs many episodes (its 0.001 quantile is
+/// the 1-in-1000 episode); phi is one coefficient for the whole process.
+/// A departure from the paper (which has one eps per instant) and from the
+/// copula above (kept for models without the decomposition).
 
 #include <string>
 #include <vector>
@@ -187,15 +206,20 @@ double CalcHoldSlipFromInstant(double p, int n, const EpsTimeModel& t);
 /// @throws std::invalid_argument for risk outside (0, 1), as above.
 double CalcInstantRiskForHold(double risk, int n, const EpsTimeModel& t);
 
-/// For simulators of the offset decomposition: G^-1(p), H^-1(p) (the
-/// stored quantiles with their lower tails) and K(y) = P(a + u_t < y).
-/// Draw a = CalcOffsetQuantile(t, U) once per episode, w_t as above, and
-/// eps_t = CalcEpsQuantileExtended(mu, CalcOffsetSumCdf(t, a +
-/// CalcWithinQuantile(t, Phi(w_t))), t) (K costs 851 terms: tabulate it for
-/// hot loops).
-/// @throws std::invalid_argument when t.offset is not valid.
+/// For simulators of the offset decomposition: G^-1(p), H^-1(p), E^-1(p)
+/// (the stored quantiles with their lower tails) and K(y) = P(a + u_t <
+/// y). Per episode draw a = CalcOffsetQuantile(t, U) and u_0 =
+/// CalcWithinQuantile(t, U'), then u_t = phi u_{t-1} +
+/// CalcInnovationQuantile(t, U_t) (with stored innovations; without them
+/// u_t = CalcWithinQuantile(t, Phi(w_t)), w_t the unit AR(1)), and eps_t =
+/// CalcEpsQuantileExtended(mu, CalcOffsetSumCdf(t, a + u_t), t). K costs
+/// 851 terms: tabulate it for hot loops. The copula sampling above is
+/// unchanged.
+/// @throws std::invalid_argument when t.offset is not valid (or, for
+/// CalcInnovationQuantile, has no innovations).
 double CalcOffsetQuantile(const EpsTimeModel& t, double p);
 double CalcWithinQuantile(const EpsTimeModel& t, double p);
+double CalcInnovationQuantile(const EpsTimeModel& t, double p);
 double CalcOffsetSumCdf(const EpsTimeModel& t, double y);
 
 }  // namespace frictiond
