@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <stdexcept>
 #include <vector>
 
@@ -389,6 +390,10 @@ class LinearSurvivalTable {
   std::vector<double> y_;
 };
 
+}  // namespace
+
+namespace internal {
+
 // The hold of n >= 2 samples under the offset decomposition:
 //   Y_t = a + u_t,  a ~ G once per episode,  u_t = H^-1(Phi(w_t)),
 //   eps_t = F^-1(K(Y_t)),  K the CDF of Y_t,
@@ -397,10 +402,10 @@ class LinearSurvivalTable {
 // E_a is Simpson in the normal score s of a = G^-1(Phi(s)) on [-8.5, 8.5].
 class OffsetHold {
  public:
-  OffsetHold(const EpsTimeModel& t, int n) : t_(t), n_(n) {
+  OffsetHold(const EpsTimeModel& t, int n) : m_(t.offset), n_(n) {
     CheckPhi(n, t.phi);
     CheckOffsetModel(t);
-    const EpsOffsetModel& m = t.offset;
+    const EpsOffsetModel& m = m_;
     linear_ = !m.innovation_quantiles.empty();
     if (n >= 2 && linear_) linear_survival_ = LinearSurvivalTable(m, t.phi, n);
     if (n >= 2 && !linear_) survival_ = SurvivalTable(n, t.phi);
@@ -471,7 +476,7 @@ class OffsetHold {
 
  private:
   double Within(double x) const {
-    const EpsOffsetModel& m = t_.offset;
+    const EpsOffsetModel& m = m_;
     return StoredCdf(
         m.within_quantiles, m.within_tail_xi, m.within_tail_scale, x);
   }
@@ -488,7 +493,7 @@ class OffsetHold {
     return 0.5 * (lo + hi);
   }
 
-  const EpsTimeModel& t_;
+  EpsOffsetModel m_;  // a copy: the rule may outlive the model
   int n_;
   bool linear_ = false;  // u_t a linear AR(1) (innovation quantiles)
   SurvivalTable survival_;
@@ -497,32 +502,48 @@ class OffsetHold {
   double y_lo_ = 0, y_hi_ = 0;
 };
 
-}  // namespace
+}  // namespace internal
 
-double CalcHoldSlipFromInstant(double p, int n, const EpsTimeModel& t) {
+HoldSlipRule::HoldSlipRule(const EpsTimeModel& t, int n)
+    : n_(n), phi_(t.phi), offset_fraction_(t.offset_fraction) {
+  if (n < 1)
+    throw std::invalid_argument("n = " + std::to_string(n) + " (must be >= 1)");
+  if (n >= 2 && t.offset.valid)
+    impl_ = std::make_unique<const internal::OffsetHold>(t, n);
+}
+
+HoldSlipRule::~HoldSlipRule() = default;
+HoldSlipRule::HoldSlipRule(HoldSlipRule&&) noexcept = default;
+HoldSlipRule& HoldSlipRule::operator=(HoldSlipRule&&) noexcept = default;
+
+double HoldSlipRule::SlipFromInstant(double p) const {
   if (!(p >= 0 && p <= 1))
     throw std::invalid_argument("instant risk = " + std::to_string(p) +
                                 " (must be in [0, 1])");
-  if (n < 1)
-    throw std::invalid_argument("n = " + std::to_string(n) + " (must be >= 1)");
-  if (n == 1) return p;
-  if (!t.offset.valid)
+  if (n_ == 1) return p;
+  if (!impl_)
     return CalcHoldCrossingProbability(
-        NormalQuantile(p), n, t.phi, t.offset_fraction);
+        NormalQuantile(p), n_, phi_, offset_fraction_);
   if (p <= 0.0 || p >= 1.0) return p;
-  return OffsetHold(t, n).FromInstant(p);
+  return impl_->FromInstant(p);
 }
 
-double CalcInstantRiskForHold(double risk, int n, const EpsTimeModel& t) {
+double HoldSlipRule::InstantRiskFor(double risk) const {
   if (!(risk > 0 && risk < 1))
     throw std::invalid_argument("risk = " + std::to_string(risk) +
                                 " (must be in (0, 1))");
-  if (n < 1)
-    throw std::invalid_argument("n = " + std::to_string(n) + " (must be >= 1)");
-  if (n == 1) return risk;
-  if (!t.offset.valid)
-    return NormalCdf(CalcHoldCrossingLevel(risk, n, t.phi, t.offset_fraction));
-  return OffsetHold(t, n).InstantFor(risk);
+  if (n_ == 1) return risk;
+  if (!impl_)
+    return NormalCdf(CalcHoldCrossingLevel(risk, n_, phi_, offset_fraction_));
+  return impl_->InstantFor(risk);
+}
+
+double CalcHoldSlipFromInstant(double p, int n, const EpsTimeModel& t) {
+  return HoldSlipRule(t, n).SlipFromInstant(p);
+}
+
+double CalcInstantRiskForHold(double risk, int n, const EpsTimeModel& t) {
+  return HoldSlipRule(t, n).InstantRiskFor(risk);
 }
 
 double CalcOffsetQuantile(const EpsTimeModel& t, double p) {
@@ -551,7 +572,7 @@ double CalcInnovationQuantile(const EpsTimeModel& t, double p) {
 }
 
 double CalcOffsetSumCdf(const EpsTimeModel& t, double y) {
-  return OffsetHold(t, 1).Cdf(y);
+  return internal::OffsetHold(t, 1).Cdf(y);
 }
 
 }  // namespace frictiond

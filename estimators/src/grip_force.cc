@@ -251,7 +251,10 @@ GripForce CalcGripForce(const StochasticFrictionModel& model,
     return g;
   }
   g.hold_samples = HoldSamples(t, options.hold_s);
-  g.min_supported_risk = CalcMinSupportedRisk(model, options.hold_s);
+  // One rule, tabulated once, for the smallest supported risk (as
+  // CalcMinSupportedRisk) and the answer.
+  const HoldSlipRule rule(t, g.hold_samples);
+  g.min_supported_risk = rule.SlipFromInstant(MinInstantRisk(model));
   if (risk < g.min_supported_risk) {
     g.status = GripForceStatus::kUnsupportedRisk;
     g.why = "risk = " + std::to_string(risk) +
@@ -260,7 +263,7 @@ GripForce CalcGripForce(const StochasticFrictionModel& model,
             std::to_string(g.min_supported_risk);
     return g;
   }
-  g.instant_risk = CalcInstantRiskForHold(risk, g.hold_samples, t);
+  g.instant_risk = rule.InstantRiskFor(risk);
   // u: the eps quantile at the instant risk. With an eps scale model the
   // stored quantile is of eps / s(Fn, v), so (*) reads
   //   Fn * (x(Fn)' beta + s(Fn, v) u) = load_n

@@ -3,7 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <random>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -230,6 +233,15 @@ TEST(EpsTime, OffsetDecompositionMatchesMonteCarlo) {
     EXPECT_NEAR(CalcInstantRiskForHold(p, c.n, t), c.p, 1e-3 * c.p) << c.name;
     // One instant is the marginal itself.
     EXPECT_EQ(CalcHoldSlipFromInstant(c.p, 1, t), c.p);
+    // The tabulated rule answers exactly as the functions, also after a
+    // move and after the model it was built from is gone.
+    std::unique_ptr<EpsTimeModel> owned = std::make_unique<EpsTimeModel>(t);
+    HoldSlipRule built(*owned, c.n);
+    owned.reset();
+    const HoldSlipRule rule = std::move(built);
+    EXPECT_EQ(rule.SlipFromInstant(c.p), p) << c.name;
+    EXPECT_EQ(rule.InstantRiskFor(p), CalcInstantRiskForHold(p, c.n, t));
+    EXPECT_EQ(rule.samples(), c.n);
   }
 }
 
@@ -358,7 +370,11 @@ TEST(EpsTime, IdentifiesOffsetDecomposition) {
   EXPECT_FALSE(FitEpsTimeModel(white, episode, 0.01).offset.valid);
 }
 
+static_assert(std::is_nothrow_move_constructible_v<HoldSlipRule>);
+static_assert(std::is_nothrow_move_assignable_v<HoldSlipRule>);
+
 TEST(EpsTime, RejectsBadArguments) {
+  EXPECT_THROW(HoldSlipRule(EpsTimeModel{}, 0), std::invalid_argument);
   EXPECT_THROW(CalcHoldSlipFromInstant(1.5, 3, EpsTimeModel{}),
                std::invalid_argument);
   EXPECT_THROW(CalcInstantRiskForHold(0.0, 3, EpsTimeModel{}),

@@ -90,6 +90,7 @@
 /// A departure from the paper (which has one eps per instant) and from the
 /// copula above (kept for models without the decomposition).
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -205,6 +206,38 @@ double CalcHoldSlipFromInstant(double p, int n, const EpsTimeModel& t);
 /// CalcHoldSlipFromInstant(p, n, t) = risk (n = 1: risk).
 /// @throws std::invalid_argument for risk outside (0, 1), as above.
 double CalcInstantRiskForHold(double risk, int n, const EpsTimeModel& t);
+
+namespace internal {
+class OffsetHold;
+}  // namespace internal
+
+/// The same rule for one model and hold length, tabulated once for both
+/// directions (the two functions above build one per call; CalcGripForce
+/// asks both). Keeps a copy of what it needs, so it may outlive t.
+/// Move-only.
+class HoldSlipRule {
+ public:
+  /// @throws std::invalid_argument for n < 1, or (with the decomposition)
+  /// phi out of range or a malformed EpsTimeModel::offset.
+  HoldSlipRule(const EpsTimeModel& t, int n);
+  ~HoldSlipRule();
+  HoldSlipRule(HoldSlipRule&&) noexcept;
+  HoldSlipRule& operator=(HoldSlipRule&&) noexcept;
+  HoldSlipRule(const HoldSlipRule&) = delete;
+  HoldSlipRule& operator=(const HoldSlipRule&) = delete;
+
+  /// CalcHoldSlipFromInstant(p, n, t).
+  double SlipFromInstant(double p) const;
+  /// CalcInstantRiskForHold(risk, n, t).
+  double InstantRiskFor(double risk) const;
+  /// n: samples of the hold.
+  int samples() const { return n_; }
+
+ private:
+  int n_ = 1;
+  double phi_ = 0.0, offset_fraction_ = 0.0;          // the copula's (no impl_)
+  std::unique_ptr<const internal::OffsetHold> impl_;  // the decomposition
+};
 
 /// For simulators of the offset decomposition: G^-1(p), H^-1(p), E^-1(p)
 /// (the stored quantiles with their lower tails) and K(y) = P(a + u_t <
