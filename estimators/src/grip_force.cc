@@ -90,14 +90,11 @@ int HoldSamples(const EpsTimeModel& t, double hold_s) {
 
 // P(any slip during the hold) from the probability p of a slip at one
 // instant: the first passage of the identified process over the hold's
-// samples (one sample: p itself).
+// samples (one sample: p itself), the one rule of eps_time.h.
 double HoldProbabilityFromInstant(double p,
                                   const EpsTimeModel& t,
                                   double hold_s) {
-  const int n = HoldSamples(t, hold_s);
-  if (n == 1) return p;
-  return CalcHoldCrossingProbability(
-      NormalQuantile(p), n, t.phi, t.offset_fraction);
+  return CalcHoldSlipFromInstant(p, HoldSamples(t, hold_s), t);
 }
 
 // Per-instant probability floor: from the time model, else the stored
@@ -254,7 +251,10 @@ GripForce CalcGripForce(const StochasticFrictionModel& model,
     return g;
   }
   g.hold_samples = HoldSamples(t, options.hold_s);
-  g.min_supported_risk = CalcMinSupportedRisk(model, options.hold_s);
+  // One rule, tabulated once, for the smallest supported risk (as
+  // CalcMinSupportedRisk) and the answer.
+  const HoldSlipRule rule(t, g.hold_samples);
+  g.min_supported_risk = rule.SlipFromInstant(MinInstantRisk(model));
   if (risk < g.min_supported_risk) {
     g.status = GripForceStatus::kUnsupportedRisk;
     g.why = "risk = " + std::to_string(risk) +
@@ -263,9 +263,7 @@ GripForce CalcGripForce(const StochasticFrictionModel& model,
             std::to_string(g.min_supported_risk);
     return g;
   }
-  const double c =
-      CalcHoldCrossingLevel(risk, g.hold_samples, t.phi, t.offset_fraction);
-  g.instant_risk = g.hold_samples == 1 ? risk : NormalCdf(c);
+  g.instant_risk = rule.InstantRiskFor(risk);
   // u: the eps quantile at the instant risk. With an eps scale model the
   // stored quantile is of eps / s(Fn, v), so (*) reads
   //   Fn * (x(Fn)' beta + s(Fn, v) u) = load_n

@@ -29,6 +29,10 @@ struct Truth {
   double ar_rho = 0.97;     ///< per sample (correlation time 0.33 s)
   double rate_hz = 100.0;
   double t_dof = 0.0;  ///< 0: Gaussian
+  /// Outside the estimator's family of equal-shaped parts: the offset a
+  /// negative lognormal (sigma 0.6, skewed, long lower tail), the AR(1)
+  /// innovations Laplace (t_dof ignored), each scaled to its sd.
+  bool skewed_offset = false;
 };
 
 class Noise {
@@ -40,15 +44,27 @@ class Noise {
     if (t_.t_dof <= 0) return normal_(rng_);
     return student_(rng_) * std::sqrt((t_.t_dof - 2) / t_.t_dof);
   }
+  // Unit-variance skewed draw: -(lognormal - mean) / sd.
+  double Skewed() {
+    const double s2 = 0.36;
+    const double mean = std::exp(s2 / 2);
+    const double sd = std::sqrt((std::exp(s2) - 1) * std::exp(s2));
+    return -(std::exp(0.6 * normal_(rng_)) - mean) / sd;
+  }
+  // Unit-variance Laplace draw.
+  double Laplace() {
+    return (exponential_(rng_) - exponential_(rng_)) / std::sqrt(2.0);
+  }
+  double Innovation() { return t_.skewed_offset ? Laplace() : Unit(); }
   // Starts an episode: a new offset, a stationary AR state.
   void StartEpisode() {
-    offset_ = t_.offset_sd * Unit();
-    w_ = t_.ar_sd * Unit();
+    offset_ = t_.offset_sd * (t_.skewed_offset ? Skewed() : Unit());
+    w_ = t_.ar_sd * Innovation();
   }
   double Next(bool first) {
     if (!first)
       w_ = t_.ar_rho * w_ +
-           std::sqrt(1 - t_.ar_rho * t_.ar_rho) * t_.ar_sd * Unit();
+           std::sqrt(1 - t_.ar_rho * t_.ar_rho) * t_.ar_sd * Innovation();
     return offset_ + w_;
   }
 
@@ -56,6 +72,7 @@ class Noise {
   Truth t_;
   std::mt19937_64 rng_;
   std::normal_distribution<double> normal_{0.0, 1.0};
+  std::exponential_distribution<double> exponential_{1.0};
   std::student_t_distribution<double> student_;
   double offset_ = 0, w_ = 0;
 };
@@ -131,13 +148,10 @@ std::pair<int, int> BinomialInterval99(int n, double p) {
   return {lo, hi};
 }
 
-// two_sided_holds = false: for holds (hold_s > 0) only "never riskier than
-// requested" is required (slips <= the interval's upper end).
 void CheckServedRisk(const Truth& truth,
                      int strokes,
                      std::uint64_t seed,
-                     const std::string& label,
-                     bool two_sided_holds) {
+                     const std::string& label) {
   const StochasticFit fit =
       FitStochasticModel(TrainingStrokes(truth, strokes, seed));
   ASSERT_EQ(fit.status, FitStatus::kOk) << fit.why;
@@ -160,14 +174,6 @@ void CheckServedRisk(const Truth& truth,
       GripForceOptions o;
       o.hold_s = hold_s;
       const GripForce g = CalcGripForce(m, load, risk, o);
-      if (!two_sided_holds && g.status == GripForceStatus::kUnattainable) {
-        std::printf("| %s | %.3f | %.0f | unattainable: %s |\n",
-                    label.c_str(),
-                    risk,
-                    hold_s,
-                    g.why.c_str());
-        continue;
-      }
       ASSERT_EQ(g.status, GripForceStatus::kOk)
           << label << " risk " << risk << " hold " << hold_s << ": " << g.why;
       const int slips = CountSlips(
@@ -183,10 +189,8 @@ void CheckServedRisk(const Truth& truth,
                   static_cast<double>(slips) / kTrials,
                   lo,
                   hi);
-      if (two_sided_holds || hold_s == 0) {
-        EXPECT_GE(slips, lo) << label << " risk " << risk << " hold " << hold_s
-                             << " fn " << g.fn_n;
-      }
+      EXPECT_GE(slips, lo) << label << " risk " << risk << " hold " << hold_s
+                           << " fn " << g.fn_n;
       EXPECT_LE(slips, hi) << label << " risk " << risk << " hold " << hold_s
                            << " fn " << g.fn_n;
     }
@@ -194,17 +198,26 @@ void CheckServedRisk(const Truth& truth,
 }
 
 TEST(GripForce, ServedRiskHoldsForGaussianTruth) {
-  CheckServedRisk(Truth{}, 24000, 3, "gaussian", true);
+  CheckServedRisk(Truth{}, 24000, 3, "gaussian");
 }
 
 TEST(GripForce, ServedRiskHoldsForHeavyTailedTruth) {
   Truth t;
   t.t_dof = 4.0;
-  // The Gaussian copula has no tail dependence: with heavy-tailed offsets and
-  // innovations the extremes persist through a hold (one large offset or
-  // shock), so a hold has fewer independent chances to slip than the copula
-  // counts and the served force is conservative (docs/grip_force.md).
-  CheckServedRisk(t, 24000, 4, "student-t4", false);
+  // Heavy-tailed offsets persist through a hold and heavy-tailed shocks
+  // decay over ~1 / (1 - phi) samples: the offset decomposition with a
+  // linear AR(1) within part (eps_time.h) represents both; the Gaussian
+  // copula alone served holds 2x safer than requested (docs/grip_force.md).
+  CheckServedRisk(t, 24000, 4, "student-t4");
+}
+
+TEST(GripForce, ServedRiskForSkewedOffsetOutsideTheFamily) {
+  // Wider than the estimator's assumptions in shape: a skewed offset with a
+  // long lower tail and Laplace shocks. Reported in docs/grip_force.md;
+  // asserted two-sided like the others.
+  Truth t;
+  t.skewed_offset = true;
+  CheckServedRisk(t, 24000, 5, "skewed-laplace");
 }
 
 }  // namespace

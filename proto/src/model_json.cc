@@ -191,6 +191,27 @@ json StochasticModelToJson(const StochasticFrictionModel& model) {
                    {"min_instant_risk", t.min_instant_risk},
                    {"tail_xi", t.tail_xi},
                    {"tail_scale", t.tail_scale}};
+  if (t.offset.valid) {
+    // Offset plus within-episode process (eps_time.h, issue 19); absent:
+    // holds use the Gaussian copula (models stored before it).
+    const EpsOffsetModel& o = t.offset;
+    j["eps_time"]["offset_decomposition"] = {
+        {"model", "episode_offset_plus_copula_ar1"},
+        {"levels", EpsQuantileLevels()},
+        {"offset_quantiles", o.offset_quantiles},
+        {"offset_tail_xi", o.offset_tail_xi},
+        {"offset_tail_scale", o.offset_tail_scale},
+        {"within_quantiles", o.within_quantiles},
+        {"within_tail_xi", o.within_tail_xi},
+        {"within_tail_scale", o.within_tail_scale},
+        {"episodes_used", o.episodes_used}};
+    if (!o.innovation_quantiles.empty()) {
+      json& d = j["eps_time"]["offset_decomposition"];
+      d["innovation_quantiles"] = o.innovation_quantiles;
+      d["innovation_tail_xi"] = o.innovation_tail_xi;
+      d["innovation_tail_scale"] = o.innovation_tail_scale;
+    }
+  }
   if (model.eps_scale) {
     // Heteroscedastic eps (eps_scale.h); absent: one scale (paper 000).
     const EpsScaleModel& e = *model.eps_scale;
@@ -277,11 +298,66 @@ StochasticFrictionModel StochasticModelFromJson(const json& j) {
                       e.min_instant_risk < 1;
     const bool stored_valid = t.contains("valid") && t["valid"].is_boolean() &&
                               t["valid"].get<bool>();
-    e.valid = stored_valid && sane;
+    bool offset_sane = true;
+    if (t.contains("offset_decomposition")) {
+      // Hostile input: exactly one finite, non-decreasing quantile per
+      // level and tails in range, or the time model is invalid.
+      const json& o = t["offset_decomposition"];
+      const std::size_t levels = EpsQuantileLevels().size();
+      auto quantiles = [&](const char* key, std::vector<double>* out) {
+        if (!o.is_object() || !o.contains(key) || !o[key].is_array() ||
+            o[key].size() != levels)
+          return false;
+        for (const json& x : o[key]) {
+          if (!x.is_number()) return false;
+          const double v = x.get<double>();
+          if (!std::isfinite(v) || (!out->empty() && v < out->back()))
+            return false;
+          out->push_back(v);
+        }
+        return true;
+      };
+      auto tail = [&](const char* xi_key,
+                      const char* scale_key,
+                      double* xi,
+                      double* scale) {
+        *xi = GetNumberOr(o, xi_key, 0.0);
+        *scale = GetNumberOr(o, scale_key, 0.0);
+        return *xi >= -0.5 && *xi <= 1 && *scale >= 0 && std::isfinite(*scale);
+      };
+      EpsOffsetModel& d = e.offset;
+      offset_sane =
+          quantiles("offset_quantiles", &d.offset_quantiles) &&
+          quantiles("within_quantiles", &d.within_quantiles) &&
+          tail("offset_tail_xi",
+               "offset_tail_scale",
+               &d.offset_tail_xi,
+               &d.offset_tail_scale) &&
+          tail("within_tail_xi",
+               "within_tail_scale",
+               &d.within_tail_xi,
+               &d.within_tail_scale) &&
+          (!o.contains("innovation_quantiles") ||
+           (quantiles("innovation_quantiles", &d.innovation_quantiles) &&
+            tail("innovation_tail_xi",
+                 "innovation_tail_scale",
+                 &d.innovation_tail_xi,
+                 &d.innovation_tail_scale)));
+      d.episodes_used = static_cast<int>(
+          std::clamp(GetNumberOr(o, "episodes_used", 0.0), 0.0, 2e9));
+      d.valid = offset_sane;
+      if (!offset_sane) d = EpsOffsetModel{};
+    }
+    e.valid = stored_valid && sane && offset_sane;
     if (stored_valid && !sane)
       e.why =
           "stored eps_time out of range (dt_s, phi, offset_fraction or "
           "min_instant_risk)";
+    else if (stored_valid && !offset_sane)
+      e.why =
+          "stored eps_time.offset_decomposition malformed (quantiles: one "
+          "finite, non-decreasing number per level; tails: xi in [-0.5, 1], "
+          "scale >= 0)";
   }
   if (j.contains("eps_scale") && !j["eps_scale"].is_null()) {
     // Hostile input: a malformed scale is refused, naming the field.

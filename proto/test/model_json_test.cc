@@ -80,6 +80,86 @@ TEST(ModelJson, HostileEpsTimeLeavesItInvalid) {
   EXPECT_FALSE(StochasticModelFromJson(j).eps_time.valid);
 }
 
+StochasticFrictionModel WithOffsetDecomposition() {
+  StochasticFrictionModel m = WithTimeModel();
+  EpsOffsetModel& o = m.eps_time.offset;
+  o.valid = true;
+  for (double p : EpsQuantileLevels()) {
+    o.offset_quantiles.push_back(0.04 * (p - 0.5));
+    o.within_quantiles.push_back(0.02 * (p - 0.5));
+  }
+  o.offset_tail_xi = 0.3;
+  o.offset_tail_scale = 0.02;
+  o.within_tail_xi = -0.1;
+  o.within_tail_scale = 0.004;
+  for (double p : EpsQuantileLevels())
+    o.innovation_quantiles.push_back(0.005 * (p - 0.5));
+  o.innovation_tail_xi = 0.25;
+  o.innovation_tail_scale = 0.001;
+  o.episodes_used = 11;
+  return m;
+}
+
+TEST(ModelJson, OffsetDecompositionRoundTripsAndIsOptional) {
+  // Absent (as in every model stored before it): not valid, the time model
+  // itself still valid (holds use the Gaussian copula).
+  EXPECT_FALSE(StochasticModelToJson(WithTimeModel())["eps_time"].contains(
+      "offset_decomposition"));
+  const StochasticFrictionModel old =
+      StochasticModelFromJson(StochasticModelToJson(WithTimeModel()));
+  EXPECT_TRUE(old.eps_time.valid);
+  EXPECT_FALSE(old.eps_time.offset.valid);
+  const StochasticFrictionModel m = WithOffsetDecomposition();
+  const StochasticFrictionModel back =
+      StochasticModelFromJson(StochasticModelToJson(m));
+  const EpsOffsetModel& a = m.eps_time.offset;
+  const EpsOffsetModel& b = back.eps_time.offset;
+  EXPECT_TRUE(back.eps_time.valid);
+  EXPECT_TRUE(b.valid);
+  EXPECT_EQ(b.offset_quantiles, a.offset_quantiles);
+  EXPECT_EQ(b.within_quantiles, a.within_quantiles);
+  EXPECT_EQ(b.offset_tail_xi, a.offset_tail_xi);
+  EXPECT_EQ(b.offset_tail_scale, a.offset_tail_scale);
+  EXPECT_EQ(b.within_tail_xi, a.within_tail_xi);
+  EXPECT_EQ(b.within_tail_scale, a.within_tail_scale);
+  EXPECT_EQ(b.innovation_quantiles, a.innovation_quantiles);
+  EXPECT_EQ(b.innovation_tail_xi, a.innovation_tail_xi);
+  EXPECT_EQ(b.innovation_tail_scale, a.innovation_tail_scale);
+  EXPECT_EQ(b.episodes_used, a.episodes_used);
+  // Without innovations (optional inside the decomposition): u_t is the
+  // Gaussian copula AR(1).
+  nlohmann::json j = StochasticModelToJson(m);
+  j["eps_time"]["offset_decomposition"].erase("innovation_quantiles");
+  const StochasticFrictionModel copula = StochasticModelFromJson(j);
+  EXPECT_TRUE(copula.eps_time.offset.valid);
+  EXPECT_TRUE(copula.eps_time.offset.innovation_quantiles.empty());
+}
+
+TEST(ModelJson, HostileOffsetDecompositionLeavesTimeModelInvalid) {
+  const nlohmann::json good = StochasticModelToJson(WithOffsetDecomposition());
+  std::vector<nlohmann::json> bad(7, good);
+  auto& o0 = bad[0]["eps_time"]["offset_decomposition"];
+  o0["offset_quantiles"].erase(0);  // one level short
+  auto& o1 = bad[1]["eps_time"]["offset_decomposition"];
+  o1["within_quantiles"][5] = 1.0;  // decreasing afterwards
+  auto& o2 = bad[2]["eps_time"]["offset_decomposition"];
+  o2["offset_quantiles"][3] = "x";  // not a number
+  auto& o3 = bad[3]["eps_time"]["offset_decomposition"];
+  o3["within_tail_xi"] = 3.0;  // out of range
+  auto& o4 = bad[4]["eps_time"]["offset_decomposition"];
+  o4["offset_tail_scale"] = -1.0;
+  bad[5]["eps_time"]["offset_decomposition"] = "not an object";
+  auto& o6 = bad[6]["eps_time"]["offset_decomposition"];
+  o6["innovation_quantiles"][0] = 1e300;  // decreasing afterwards
+  for (std::size_t k = 0; k < bad.size(); ++k) {
+    const StochasticFrictionModel m = StochasticModelFromJson(bad[k]);
+    EXPECT_FALSE(m.eps_time.valid) << k;
+    EXPECT_FALSE(m.eps_time.offset.valid) << k;
+    EXPECT_NE(m.eps_time.why.find("offset_decomposition"), std::string::npos)
+        << k << ": " << m.eps_time.why;
+  }
+}
+
 TEST(ModelJson, EpsScaleRoundTripsAndIsAbsentByDefault) {
   StochasticFrictionModel m = WithTimeModel();
   EXPECT_FALSE(StochasticModelToJson(m).contains("eps_scale"));

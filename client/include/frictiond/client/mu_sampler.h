@@ -166,6 +166,14 @@ struct StridedInput {
 /// step uses one uniform through Phi^-1 (plus one per episode for A when
 /// f > 0). The correlation of eps itself is close to that of z (Spearman's
 /// rho of eps is (6/pi) asin(rho_z/2)).
+///
+/// Models that store the offset decomposition (EpsTimeModel::offset,
+/// eps_time.h) serve hold risks from that process, not from this copula;
+/// with heavy-tailed data the copula has more independent chances per hold,
+/// so episodes sampled here slip more often at a served force than the risk
+/// promises. Sample the decomposition with CalcOffsetQuantile,
+/// CalcWithinQuantile, CalcInnovationQuantile and CalcOffsetSumCdf
+/// (eps_time.h) to reproduce served risks exactly.
 /// @throws std::invalid_argument for invalid options (nothing written).
 void SampleMuEpisodes(const MuSampler& sampler,
                       StridedInput fn_n,
