@@ -16,6 +16,8 @@
 #include "frictiond/mujoco/actuator_replay.h"
 #include "frictiond/mujoco/friction_adapter.h"
 
+#include "pinch_scene.h"  // BinomialQuantile
+
 namespace frictiond::mujoco {
 namespace {
 
@@ -44,14 +46,11 @@ constexpr const char* kScene = R"(
 constexpr double kDtS = 0.01;  // eps_time sampling interval (5 steps)
 constexpr double kPhi = 0.9;
 constexpr double kOffset = 0.5;
-constexpr double kSettleS = 0.2;
-constexpr double kHoldS = 0.5;
 constexpr double kSlipM = 2e-5;  // box moved 20 um after settling: slipped
-// The hold is followed by a grace under the same load: a slip (or drop)
-// of the hold is one whose sliding run (box speed above 0.1 mm/s) began
-// within the hold (drop_rate_e2e_test's rule, docs/mujoco.md).
-constexpr double kGraceS = 0.2;
-constexpr double kSlideSpeed = 1e-4;  // [m/s]
+// kSettleS, kHoldS, kGraceS and kSlideSpeed are the pinch scene's
+// (pinch_scene.h): the hold is followed by a grace under the same load; a
+// slip (or drop) of the hold is one whose sliding run (box speed above 0.1
+// mm/s) began within the hold (drop_rate_e2e_test's rule, docs/mujoco.md).
 
 // mu = 0.8 - 0.002 v - 0.01 Fn + eps, eps ~ N(0, 0.1) stored as quantiles,
 // with an AR(1) + offset time structure.
@@ -72,17 +71,6 @@ StochasticFrictionModel Truth() {
   t.eps_time.offset_fraction = kOffset;
   t.eps_time.min_instant_risk = 1e-4;
   return t;
-}
-
-int BinomialQuantile(int n, double r, double p) {
-  double cdf = 0.0;
-  for (int k = 0; k <= n; ++k) {
-    cdf += std::exp(std::lgamma(n + 1.0) - std::lgamma(k + 1.0) -
-                    std::lgamma(n - k + 1.0) + k * std::log(r) +
-                    (n - k) * std::log1p(-r));
-    if (cdf >= p) return k;
-  }
-  return n;
 }
 
 double NormalQuantile(double p) {
