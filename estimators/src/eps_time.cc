@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "frictiond/estimators/grip_force.h"
 #include "frictiond/estimators/stats.h"
 #include "frictiond/estimators/stochastic_model.h"
 
@@ -211,67 +212,9 @@ double CalcHoldCrossingLevel(double risk,
 
 namespace {
 
-// Quantile functions of the offset decomposition's stored distributions:
-// the rule of CalcEpsQuantileExtended (grip_force.h) on other quantiles.
-constexpr double kTailLevel = 0.02;  // the GPD's threshold level
-
-double GpdExcess(double xi, double scale, double p) {
-  const double r = p / kTailLevel;
-  if (std::fabs(xi) < 1e-9) return -scale * std::log(r);
-  return scale / xi * (std::pow(r, -xi) - 1);
-}
-
-double GpdLevel(double xi, double scale, double excess) {
-  if (std::fabs(xi) < 1e-9) return kTailLevel * std::exp(-excess / scale);
-  const double base = 1 + xi * excess / scale;
-  if (!(base > 0)) return 0.0;  // beyond a light tail's end point
-  return kTailLevel * std::pow(base, -1 / xi);
-}
-
-// Quantile at p in (0, 1): linear between EpsQuantileLevels(), the top
-// quantile above the last level, below the 0.001 level the GPD tail
-// (xi, scale) anchored at the 0.001 quantile, or (scale = 0) an
-// exponential tail through the 0.001 and 0.01 quantiles.
-double StoredQuantile(const std::vector<double>& q,
-                      double xi,
-                      double scale,
-                      double p) {
-  const auto& levels = EpsQuantileLevels();
-  const double p0 = levels.front();
-  if (p >= p0) {
-    if (p >= levels.back()) return q.back();
-    const auto it = std::upper_bound(levels.begin(), levels.end(), p);
-    const std::size_t k = it - levels.begin();
-    const double w = (p - levels[k - 1]) / (levels[k] - levels[k - 1]);
-    return q[k - 1] + w * (q[k] - q[k - 1]);
-  }
-  const double q0 = q.front();
-  if (scale > 0)
-    return q0 - (GpdExcess(xi, scale, p) - GpdExcess(xi, scale, p0));
-  const double q1 = StoredQuantile(q, xi, scale, 10 * p0);
-  return q0 + std::max(0.0, q1 - q0) / std::log(10.0) * std::log(p / p0);
-}
-
-// The CDF matching StoredQuantile.
-double StoredCdf(const std::vector<double>& q,
-                 double xi,
-                 double scale,
-                 double x) {
-  const auto& levels = EpsQuantileLevels();
-  const double p0 = levels.front(), q0 = q.front();
-  if (x >= q.back()) return 1.0;
-  if (x >= q0) {
-    const auto it = std::upper_bound(q.begin(), q.end(), x);
-    const std::size_t k = it - q.begin();
-    const double dq = q[k] - q[k - 1];
-    const double w = dq > 0 ? (x - q[k - 1]) / dq : 1.0;
-    return levels[k - 1] + w * (levels[k] - levels[k - 1]);
-  }
-  if (scale > 0) return GpdLevel(xi, scale, GpdExcess(xi, scale, p0) + q0 - x);
-  const double q1 = StoredQuantile(q, xi, scale, 10 * p0);
-  const double s = std::max(1e-300, q1 - q0) / std::log(10.0);
-  return p0 * std::exp((x - q0) / s);
-}
+// The offset decomposition's stored distributions are read with the rule
+// of CalcEpsQuantileExtended (grip_force.h: CalcStoredQuantileExtended,
+// CalcStoredCdfExtended).
 
 void CheckOffsetModel(const EpsTimeModel& t) {
   const std::size_t levels = EpsQuantileLevels().size();
@@ -305,19 +248,20 @@ class LinearSurvivalTable {
     const double sd_u =
         std::max(1e-300, 0.5 * (qh[level_index(0.84)] - qh[level_index(0.16)]));
     auto h_cdf = [&](double x) {
-      return StoredCdf(qh, m.within_tail_xi, m.within_tail_scale, x);
+      return CalcStoredCdfExtended(
+          qh, m.within_tail_xi, m.within_tail_scale, x);
     };
     auto e_cdf = [&](double x) {
-      return StoredCdf(m.innovation_quantiles,
-                       m.innovation_tail_xi,
-                       m.innovation_tail_scale,
-                       x);
+      return CalcStoredCdfExtended(m.innovation_quantiles,
+                                   m.innovation_tail_xi,
+                                   m.innovation_tail_scale,
+                                   x);
     };
     // Grid: from H's 1e-7 quantile (floored at -12 sd) to 8 sd above its
     // top quantile; at most kCells cells, at most a fifth of e's sd wide.
-    lo_ = std::max(
-        StoredQuantile(qh, m.within_tail_xi, m.within_tail_scale, 1e-7),
-        qh[level_index(0.5)] - 12 * sd_u);
+    lo_ = std::max(CalcStoredQuantileExtended(
+                       qh, m.within_tail_xi, m.within_tail_scale, 1e-7),
+                   qh[level_index(0.5)] - 12 * sd_u);
     const double hi = qh.back() + 8 * sd_u;
     const double sd_e = sd_u * std::sqrt(std::max(1e-6, 1 - phi * phi));
     h_ = std::max(sd_e / 5, (hi - lo_) / kCells);
@@ -416,10 +360,10 @@ class OffsetHold {
     double sum = 0;
     for (int j = 0; j <= kIntervals; ++j) {
       const double s = -8.5 + j * step;
-      a_[j] = StoredQuantile(m.offset_quantiles,
-                             m.offset_tail_xi,
-                             m.offset_tail_scale,
-                             NormalCdf(s));
+      a_[j] = CalcStoredQuantileExtended(m.offset_quantiles,
+                                         m.offset_tail_xi,
+                                         m.offset_tail_scale,
+                                         NormalCdf(s));
       w_[j] = step / 3.0 *
               (j == 0 || j == kIntervals ? 1.0 : (j % 2 == 1 ? 4.0 : 2.0)) *
               std::exp(-0.5 * s * s) / std::sqrt(2 * M_PI);
@@ -429,9 +373,9 @@ class OffsetHold {
     // Bracket of y: below it K and the crossing are < ~1e-12 (n <= 360,001
     // samples), above it both are 1.
     y_lo_ =
-        StoredQuantile(
+        CalcStoredQuantileExtended(
             m.offset_quantiles, m.offset_tail_xi, m.offset_tail_scale, 1e-18) +
-        StoredQuantile(
+        CalcStoredQuantileExtended(
             m.within_quantiles, m.within_tail_xi, m.within_tail_scale, 1e-18);
     y_hi_ = m.offset_quantiles.back() + m.within_quantiles.back();
   }
@@ -477,7 +421,7 @@ class OffsetHold {
  private:
   double Within(double x) const {
     const EpsOffsetModel& m = m_;
-    return StoredCdf(
+    return CalcStoredCdfExtended(
         m.within_quantiles, m.within_tail_xi, m.within_tail_scale, x);
   }
 
@@ -549,14 +493,14 @@ double CalcInstantRiskForHold(double risk, int n, const EpsTimeModel& t) {
 double CalcOffsetQuantile(const EpsTimeModel& t, double p) {
   CheckOffsetModel(t);
   const EpsOffsetModel& m = t.offset;
-  return StoredQuantile(
+  return CalcStoredQuantileExtended(
       m.offset_quantiles, m.offset_tail_xi, m.offset_tail_scale, p);
 }
 
 double CalcWithinQuantile(const EpsTimeModel& t, double p) {
   CheckOffsetModel(t);
   const EpsOffsetModel& m = t.offset;
-  return StoredQuantile(
+  return CalcStoredQuantileExtended(
       m.within_quantiles, m.within_tail_xi, m.within_tail_scale, p);
 }
 
@@ -567,7 +511,7 @@ double CalcInnovationQuantile(const EpsTimeModel& t, double p) {
     throw std::invalid_argument(
         "eps_time.offset_decomposition: no innovation quantiles (u_t is the "
         "Gaussian copula AR(1))");
-  return StoredQuantile(
+  return CalcStoredQuantileExtended(
       m.innovation_quantiles, m.innovation_tail_xi, m.innovation_tail_scale, p);
 }
 
@@ -635,10 +579,11 @@ std::vector<double> StationaryQuantiles(const std::vector<double>& eq,
   for (int i = 0; i < kCells; ++i) {
     const double x = lo + (i + 0.5) * h;
     for (int j = 0; j <= kCells; ++j)
-      edge[j] = j == 0 ? 0.0
-                : j == kCells
-                    ? 1.0  // the grid's ends keep the mass beyond them
-                    : StoredCdf(eq, xi, scale, lo + j * h - phi * x);
+      edge[j] =
+          j == 0 ? 0.0
+          : j == kCells
+              ? 1.0  // the grid's ends keep the mass beyond them
+              : CalcStoredCdfExtended(eq, xi, scale, lo + j * h - phi * x);
     for (int j = 0; j < kCells; ++j)
       kernel[static_cast<std::size_t>(i) * kCells + j] = edge[j + 1] - edge[j];
   }

@@ -28,37 +28,68 @@ namespace {
 constexpr double kTailLevel = 0.02;  // the GPD's threshold level
 
 // GPD excess below the 2 % quantile at probability p < 0.02.
-double GpdExcess(const EpsTimeModel& t, double p) {
+double GpdExcess(double xi, double scale, double p) {
   const double r = p / kTailLevel;
-  if (std::fabs(t.tail_xi) < 1e-9) return -t.tail_scale * std::log(r);
-  return t.tail_scale / t.tail_xi * (std::pow(r, -t.tail_xi) - 1);
+  if (std::fabs(xi) < 1e-9) return -scale * std::log(r);
+  return scale / xi * (std::pow(r, -xi) - 1);
 }
 
 // Inverse of GpdExcess.
-double GpdLevel(const EpsTimeModel& t, double excess) {
-  if (std::fabs(t.tail_xi) < 1e-9)
-    return kTailLevel * std::exp(-excess / t.tail_scale);
-  const double base = 1 + t.tail_xi * excess / t.tail_scale;
+double GpdLevel(double xi, double scale, double excess) {
+  if (std::fabs(xi) < 1e-9) return kTailLevel * std::exp(-excess / scale);
+  const double base = 1 + xi * excess / scale;
   if (!(base > 0)) return 0.0;  // beyond a light tail's end point
-  return kTailLevel * std::pow(base, -1 / t.tail_xi);
+  return kTailLevel * std::pow(base, -1 / xi);
 }
 
 }  // namespace
 
+double CalcStoredQuantileExtended(const std::vector<double>& q,
+                                  double tail_xi,
+                                  double tail_scale,
+                                  double p) {
+  const double p0 = EpsQuantileLevels().front();
+  if (p >= p0) return InterpolateStoredQuantiles(q, p);
+  const double q0 = q.front();
+  if (tail_scale > 0)  // the GPD's shape, anchored at the 0.001 level
+    return q0 - (GpdExcess(tail_xi, tail_scale, p) -
+                 GpdExcess(tail_xi, tail_scale, p0));
+  // Exponential lower tail through the 0.001 and 0.01 quantiles.
+  const double q1 = InterpolateStoredQuantiles(q, 10 * p0);
+  const double scale = std::max(0.0, q1 - q0) / std::log(10.0);
+  return q0 + scale * std::log(p / p0);
+}
+
+double CalcStoredCdfExtended(const std::vector<double>& q,
+                             double tail_xi,
+                             double tail_scale,
+                             double x) {
+  const auto& levels = EpsQuantileLevels();
+  const double p0 = levels.front(), q0 = q.front();
+  if (x >= q.back()) return 1.0;
+  if (x >= q0) {
+    const auto it = std::upper_bound(q.begin(), q.end(), x);
+    const std::size_t k = it - q.begin();
+    const double dq = q[k] - q[k - 1];
+    const double w = dq > 0 ? (x - q[k - 1]) / dq : 1.0;
+    return std::max(p0, levels[k - 1] + w * (levels[k] - levels[k - 1]));
+  }
+  if (tail_scale > 0)
+    return GpdLevel(
+        tail_xi, tail_scale, GpdExcess(tail_xi, tail_scale, p0) + (q0 - x));
+  const double q1 = InterpolateStoredQuantiles(q, 10 * p0);
+  const double scale = std::max(1e-300, q1 - q0) / std::log(10.0);
+  return p0 * std::exp((x - q0) / scale);
+}
+
 double CalcEpsQuantileExtended(const RegressionModel& model,
                                double p,
                                const EpsTimeModel& tail) {
-  const auto& levels = EpsQuantileLevels();
-  const double p0 = levels.front();
-  if (p >= p0 || model.eps_quantiles.size() != levels.size())
+  if (p >= EpsQuantileLevels().front() ||
+      model.eps_quantiles.size() != EpsQuantileLevels().size())
     return CalcEpsQuantile(model, p);
-  const double q0 = CalcEpsQuantile(model, p0);
-  if (tail.tail_scale > 0)  // the GPD's shape, anchored at the 0.001 level
-    return q0 - (GpdExcess(tail, p) - GpdExcess(tail, p0));
-  // Exponential lower tail through the 0.001 and 0.01 quantiles.
-  const double q1 = CalcEpsQuantile(model, 10 * p0);
-  const double scale = std::max(0.0, q1 - q0) / std::log(10.0);
-  return q0 + scale * std::log(p / p0);
+  return CalcStoredQuantileExtended(
+      model.eps_quantiles, tail.tail_xi, tail.tail_scale, p);
 }
 
 double CalcEpsQuantileExtended(const RegressionModel& model, double p) {
@@ -69,16 +100,10 @@ double CalcEpsQuantileExtended(const RegressionModel& model, double p) {
 double CalcEpsCdfExtended(const RegressionModel& model,
                           double e,
                           const EpsTimeModel& tail) {
-  const double p0 = EpsQuantileLevels().front();
   if (model.eps_quantiles.size() != EpsQuantileLevels().size())
     return CalcEpsCdf(model, e);
-  const double q0 = CalcEpsQuantile(model, p0);
-  if (e >= q0) return std::max(p0, CalcEpsCdf(model, e));
-  if (tail.tail_scale > 0)
-    return GpdLevel(tail, GpdExcess(tail, p0) + (q0 - e));
-  const double q1 = CalcEpsQuantile(model, 10 * p0);
-  const double scale = std::max(1e-300, q1 - q0) / std::log(10.0);
-  return p0 * std::exp((e - q0) / scale);
+  return CalcStoredCdfExtended(
+      model.eps_quantiles, tail.tail_xi, tail.tail_scale, e);
 }
 
 namespace {

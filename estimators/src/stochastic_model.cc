@@ -507,9 +507,13 @@ StochasticFit FitStochasticModel(const StrokeData& input,
 }
 
 double CalcEpsQuantile(const RegressionModel& model, double p) {
+  if (model.eps_quantiles.size() != EpsQuantileLevels().size())
+    return NormalQuantile(p) * model.sigma_eps;
+  return InterpolateStoredQuantiles(model.eps_quantiles, p);
+}
+
+double InterpolateStoredQuantiles(const std::vector<double>& q, double p) {
   const auto& levels = EpsQuantileLevels();
-  const auto& q = model.eps_quantiles;
-  if (q.size() != levels.size()) return NormalQuantile(p) * model.sigma_eps;
   if (p <= levels.front()) return q.front();
   if (p >= levels.back()) return q.back();
   const auto it = std::upper_bound(levels.begin(), levels.end(), p);

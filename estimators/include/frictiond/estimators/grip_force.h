@@ -47,6 +47,7 @@
 /// @endcode
 
 #include <string>
+#include <vector>
 
 #include "frictiond/estimators/eps_time.h"
 #include "frictiond/estimators/stochastic_model.h"
@@ -121,6 +122,19 @@ double CalcEpsQuantileExtended(const RegressionModel& model,
                                const EpsTimeModel& tail);
 /// The same without a fitted tail (exponential below 0.001).
 double CalcEpsQuantileExtended(const RegressionModel& model, double p);
+/// The rule of CalcEpsQuantileExtended on any quantile set `q` at
+/// EpsQuantileLevels() (q.size() must equal theirs) with its tail
+/// (tail_xi, tail_scale; tail_scale 0: exponential below 0.001); serves
+/// the offset decomposition's stored distributions too (eps_time.h).
+double CalcStoredQuantileExtended(const std::vector<double>& q,
+                                  double tail_xi,
+                                  double tail_scale,
+                                  double p);
+/// The CDF matching CalcStoredQuantileExtended.
+double CalcStoredCdfExtended(const std::vector<double>& q,
+                             double tail_xi,
+                             double tail_scale,
+                             double x);
 /// The CDF of eps matching CalcEpsQuantileExtended (its inverse).
 double CalcEpsCdfExtended(const RegressionModel& model,
                           double e,

@@ -229,6 +229,10 @@ MuPrediction PredictMu(const StochasticFrictionModel& model,
 double CalcEpsCdf(const RegressionModel& model, double e);
 /// Empirical quantile of eps at probability p.
 double CalcEpsQuantile(const RegressionModel& model, double p);
+/// The quantile at p of a quantile set `q` stored at EpsQuantileLevels()
+/// (same size): linear between the levels, the end quantiles beyond them
+/// (CalcEpsQuantile's rule).
+double InterpolateStoredQuantiles(const std::vector<double>& q, double p);
 
 /// Likelihood of slip at (Fn, Ft): the sigmoid L(Ft/Fn) when fitted,
 /// otherwise P(mu <= Ft/Fn) from the Fn-only model's eps distribution.
