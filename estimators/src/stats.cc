@@ -251,9 +251,12 @@ std::vector<double> SelectQuantiles(std::vector<double>* x,
     return out;
   }
   // The order statistics the quantiles interpolate between: distributed
-  // into buckets on large sets (expected O(n)), else placed by recursive
+  // into buckets above 256 values (expected O(n)), else placed by recursive
   // multiple selection (O(n log k); one nth_element per statistic on the
-  // remaining tail would be O(n k)).
+  // remaining tail would be O(n k)). Measured for eq. (1)'s 107 levels on
+  // 2,500 residuals (a bounded refit's slipping rows): 50 us by selection,
+  // 19 us by distribution, 21 us by a full sort; above 4,096 values only
+  // the distribution stays linear.
   std::vector<std::size_t> order;
   for (double p : levels) {
     const double h = std::clamp(p, 0.0, 1.0) * (e.size() - 1);
@@ -264,7 +267,7 @@ std::vector<double> SelectQuantiles(std::vector<double>* x,
   order.erase(std::unique(order.begin(), order.end()), order.end());
   const bool any_nan =
       std::any_of(e.begin(), e.end(), [](double v) { return std::isnan(v); });
-  if (!(e.size() > 4096 && !any_nan && DistributeOrderStatistics(&e, order)))
+  if (!(e.size() > 256 && !any_nan && DistributeOrderStatistics(&e, order)))
     SelectMany(&e, 0, e.size(), order, 0, order.size());
   for (double p : levels) {
     const double h = std::clamp(p, 0.0, 1.0) * (e.size() - 1);

@@ -211,41 +211,46 @@ TEST(SelectQuantiles, ManyLevelsWithOutliersAndTies) {
   std::normal_distribution<double> fine(0.0, 1.0);
   std::vector<double> levels;
   for (int k = 0; k <= 100; ++k) levels.push_back(k / 100.0);
-  const int n = 30011;
-  for (int kind = 0; kind < 5; ++kind) {
-    std::vector<double> x(n);
-    for (int i = 0; i < n; ++i) {
-      switch (kind) {
-        case 0:
-          x[i] = heavy(rng);
-          break;
-        case 1:  // infinities off the sample's stride
-          x[i] = i % 58 != 0 && i % 997 == 1 ? (i % 2 ? INFINITY : -INFINITY)
-                                             : fine(rng);
-          break;
-        case 2:  // 60 % one value
-          x[i] = i % 5 < 3 ? 0.25 : fine(rng);
-          break;
-        case 3:  // every sampled value equal, the rest spread
-          x[i] = i % 58 == 0 ? 1.0 : fine(rng);
-          break;
-        default:  // distinct values packed into one bucket by outliers
-          x[i] = i % 100 == 0 ? 1e3 * fine(rng) : 1e-6 * fine(rng);
-          break;
+  // 257 and 4097: just above the size where the distribution path starts
+  // (every value is in the range sample there) and the size it used to
+  // start at.
+  for (int n : {257, 1000, 4097, 30011})
+    for (int kind = 0; kind < 5; ++kind) {
+      std::vector<double> x(n);
+      for (int i = 0; i < n; ++i) {
+        switch (kind) {
+          case 0:
+            x[i] = heavy(rng);
+            break;
+          case 1:  // infinities off the sample's stride
+            x[i] = i % 58 != 0 && i % 997 == 1 ? (i % 2 ? INFINITY : -INFINITY)
+                                               : fine(rng);
+            break;
+          case 2:  // 60 % one value
+            x[i] = i % 5 < 3 ? 0.25 : fine(rng);
+            break;
+          case 3:  // every sampled value equal, the rest spread
+            x[i] = i % 58 == 0 ? 1.0 : fine(rng);
+            break;
+          default:  // distinct values packed into one bucket by outliers
+            x[i] = i % 100 == 0 ? 1e3 * fine(rng) : 1e-6 * fine(rng);
+            break;
+        }
+      }
+      std::vector<double> sorted = x;
+      std::sort(sorted.begin(), sorted.end());
+      const std::vector<double> q = SelectQuantiles(&x, levels);
+      for (std::size_t j = 0; j < levels.size(); ++j) {
+        const double want = SortedQuantile(sorted, levels[j]);
+        if (std::isnan(want)) {  // -inf + 0 * inf at p = 0 and 1
+          EXPECT_TRUE(std::isnan(q[j]))
+              << "n " << n << " kind " << kind << " p " << levels[j];
+        } else {
+          EXPECT_EQ(q[j], want)
+              << "n " << n << " kind " << kind << " p " << levels[j];
+        }
       }
     }
-    std::vector<double> sorted = x;
-    std::sort(sorted.begin(), sorted.end());
-    const std::vector<double> q = SelectQuantiles(&x, levels);
-    for (std::size_t j = 0; j < levels.size(); ++j) {
-      const double want = SortedQuantile(sorted, levels[j]);
-      if (std::isnan(want)) {  // -inf + 0 * inf at p = 0 and 1
-        EXPECT_TRUE(std::isnan(q[j])) << "kind " << kind << " p " << levels[j];
-      } else {
-        EXPECT_EQ(q[j], want) << "kind " << kind << " p " << levels[j];
-      }
-    }
-  }
 }
 
 }  // namespace
