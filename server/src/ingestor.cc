@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <utility>
+#include <vector>
 
 #include "frictiond/estimators/stroke_csv.h"
 
@@ -79,10 +80,13 @@ struct Ingestor::Pair {
   // Guarded by mu:
   bool loaded = false;
   SlipLabelOptions labelling;
-  // Every readable stored upload of the pair, by stroke id: its sample
-  // count. Kept when the cache sheds the parsed data, so that a refit
-  // loads only the uploads SelectFitUploads chooses (not the whole pair).
-  std::map<std::int64_t, std::size_t> sizes;
+  // Every readable stored upload of the pair: its stroke id and sample
+  // count, ascending by id in two parallel vectors (what SelectFitUploads
+  // reads, without walking a tree of the whole history per upload). Kept
+  // when the cache sheds the parsed data, so that a refit loads only the
+  // uploads SelectFitUploads chooses (not the whole pair).
+  std::vector<std::int64_t> ids;
+  std::vector<std::size_t> sizes;
   std::size_t samples_stored = 0;              // sum of sizes
   std::map<std::int64_t, StrokeData> uploads;  // prepared, by stroke id
   std::size_t samples = 0;                     // of `uploads` (cached)
@@ -123,6 +127,7 @@ void Ingestor::Shed(Pair& pair) {
 
 void Ingestor::Drop(Pair& pair) {
   Shed(pair);
+  pair.ids.clear();
   pair.sizes.clear();
   pair.samples_stored = 0;
   pair.known_through = 0;
@@ -144,7 +149,14 @@ bool Ingestor::Cache(Pair& pair, std::int64_t id, const std::string& csv) {
 
 void Ingestor::Insert(Pair& pair, std::int64_t id, StrokeData upload) {
   const std::size_t n = upload.size();
-  if (pair.sizes.emplace(id, n).second) pair.samples_stored += n;
+  // Ids arrive ascending (load, catch-up and commits in id order), so the
+  // insertion is normally an append.
+  const auto at = std::lower_bound(pair.ids.begin(), pair.ids.end(), id);
+  if (at == pair.ids.end() || *at != id) {
+    pair.sizes.insert(pair.sizes.begin() + (at - pair.ids.begin()), n);
+    pair.ids.insert(at, id);
+    pair.samples_stored += n;
+  }
   if (pair.uploads.emplace(id, std::move(upload)).second) {
     pair.samples += n;
     cached_samples_ += n;
@@ -173,7 +185,7 @@ void Ingestor::CatchUp(Pair& pair,
   for (const StrokeRecord& r : store_.ListStrokesAfter(
            material, fingertip, pair.known_through, /*with_csv=*/false)) {
     pair.known_through = std::max(pair.known_through, r.id);
-    if (pair.sizes.count(r.id)) continue;
+    if (std::binary_search(pair.ids.begin(), pair.ids.end(), r.id)) continue;
     auto full = store_.GetStroke(r.id);
     if (!full) continue;
     Cache(pair, r.id, full->csv);
@@ -191,14 +203,9 @@ FitData Ingestor::AssembleFitData(PairLock& lock,
     CatchUp(pair, lock.material(), lock.fingertip());
   }
   FitData out;
-  std::vector<std::int64_t> ids;
-  std::vector<std::size_t> sizes;
-  ids.reserve(pair.sizes.size());
-  sizes.reserve(pair.sizes.size());
-  for (const auto& [id, n] : pair.sizes) {
-    ids.push_back(id);
-    sizes.push_back(n);
-  }
+  // Copies: an upload that is gone leaves the index below.
+  const std::vector<std::int64_t> ids = pair.ids;
+  const std::vector<std::size_t> sizes = pair.sizes;
   out.uploads_stored = static_cast<int>(ids.size());
   out.samples_stored = pair.samples_stored;
   const std::vector<std::size_t> chosen =
@@ -210,8 +217,11 @@ FitData Ingestor::AssembleFitData(PairLock& lock,
     auto full = store_.GetStroke(ids[i]);
     if (!full || !Cache(pair, ids[i], full->csv)) {
       // Gone or unreadable now: it leaves the index.
+      const auto at =
+          std::lower_bound(pair.ids.begin(), pair.ids.end(), ids[i]);
       pair.samples_stored -= sizes[i];
-      pair.sizes.erase(ids[i]);
+      pair.sizes.erase(pair.sizes.begin() + (at - pair.ids.begin()));
+      pair.ids.erase(at);
     }
   }
   EvictBeyondCap(&pair);
