@@ -1,6 +1,9 @@
 #include "frictiond/estimators/identification.h"
 
+#include <atomic>
+#include <exception>
 #include <future>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -62,6 +65,32 @@ void FitConditionalCoverageAndLuGre(
   }
 }
 
+// A task run exactly once, by whichever thread claims it first: the worker
+// it was posted to, or the caller once its own share is done.
+class ClaimedTask {
+ public:
+  explicit ClaimedTask(std::function<void()> f) : f_(std::move(f)) {}
+  // Runs the task if nobody has; true when this call ran it.
+  bool TryRun() {
+    if (claimed_.exchange(true)) return false;
+    try {
+      f_();
+      done_.set_value();
+    } catch (...) {
+      done_.set_exception(std::current_exception());
+    }
+    return true;
+  }
+  // Claims the task without running it; true when it had not started.
+  bool Cancel() { return !claimed_.exchange(true); }
+  std::future<void> Future() { return done_.get_future(); }
+
+ private:
+  std::function<void()> f_;
+  std::atomic<bool> claimed_{false};
+  std::promise<void> done_;
+};
+
 }  // namespace
 
 MaterialIdentification IdentifyMaterial(
@@ -89,17 +118,30 @@ MaterialIdentification IdentifyMaterial(
   // set: the regressions and the hull; eq. (2), the span and the LuGre
   // stroke recognition). Both read `data` and `slip` only and write
   // disjoint members of `out`.
-  std::future<void> side = std::async(std::launch::async, [&] {
-    FitConditionalCoverageAndLuGre(data, slip, options, &out);
-  });
+  auto side_task = std::make_shared<ClaimedTask>(
+      [&] { FitConditionalCoverageAndLuGre(data, slip, options, &out); });
+  std::future<void> side_done = side_task->Future();
+  std::future<void> thread;  // std::async's: joined when it goes
+  if (options.post) {
+    try {
+      options.post([side_task] { side_task->TryRun(); });
+    } catch (...) {
+      // Not posted: this thread runs it below.
+    }
+  } else {
+    thread =
+        std::async(std::launch::async, [side_task] { side_task->TryRun(); });
+  }
   try {
     out.fit = FitStochasticModel(data, options.fit);
     out.hull = CalcMaterialHullCoverage(slip.fn, slip.v, slip.stroke);
   } catch (...) {
-    side.wait();
+    // Not started: nobody runs it now; started: it uses `out`, wait.
+    if (!side_task->Cancel()) side_done.wait();
     throw;
   }
-  side.get();  // rethrows the side's exception, if any
+  side_task->TryRun();  // not started yet: run it here
+  side_done.get();      // rethrows the side's exception, if any
   return out;
 }
 

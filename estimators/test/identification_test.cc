@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -93,6 +95,46 @@ TEST(IdentifyMaterial, EqualsTheStepsOnOneAndTwoThreads) {
     // most of the plan: the hull misses only the corners the half-sine
     // profiles never reach together.
     EXPECT_GT(id.coverage.span_pct, 60.0);
+  }
+}
+
+// The second share handed to `post`: the same result whether a worker runs
+// it (here a thread started by the test), whether the caller gets to it
+// first (the posted task is dropped, or runs only after the call), or
+// whether `post` throws; a late worker finds the task already claimed.
+TEST(IdentifyMaterial, PostedShareRunsExactlyOnceWhoeverClaimsIt) {
+  const StrokeData raw = Unlabelled(32);
+  MaterialIdentificationOptions options;
+  options.threads = 1;
+  const MaterialIdentification want = IdentifyMaterial(raw, options);
+  options.threads = 2;
+  std::vector<std::function<void()>> late;  // run after the call returns
+  std::vector<std::thread> workers;
+  const std::vector<
+      std::pair<std::string, std::function<void(std::function<void()>)>>>
+      posts = {
+          {"worker thread",
+           [&workers](std::function<void()> f) {
+             workers.emplace_back(std::move(f));
+           }},
+          {"dropped", [](std::function<void()>) {}},
+          {"run after the call",
+           [&late](std::function<void()> f) { late.push_back(std::move(f)); }},
+          {"post throws",
+           [](std::function<void()>) { throw std::runtime_error("full"); }},
+      };
+  for (const auto& [name, post] : posts) {
+    options.post = post;
+    const MaterialIdentification id = IdentifyMaterial(raw, options);
+    for (std::thread& t : workers) t.join();
+    workers.clear();
+    for (auto& f : late) f();  // claimed already: does nothing
+    late.clear();
+    EXPECT_EQ(id.fit.model.mu.beta, want.fit.model.mu.beta) << name;
+    EXPECT_EQ(id.conditional.knot_c1, want.conditional.knot_c1) << name;
+    EXPECT_EQ(id.coverage.span_pct, want.coverage.span_pct) << name;
+    EXPECT_EQ(id.lugre.why, want.lugre.why) << name;
+    EXPECT_EQ(id.hull.hull_area, want.hull.hull_area) << name;
   }
 }
 

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <future>
 #include <sstream>
+#include <thread>
 
 #include "frictiond/estimators/identification.h"
 #include "frictiond/estimators/stroke_csv.h"
@@ -172,6 +173,10 @@ FrictionLibrary::FrictionLibrary(std::unique_ptr<Store> store,
     : store_(std::move(store)), options_(options) {
   options_.ingest.max_samples_per_upload = options_.max_samples_per_upload;
   ingestor_ = std::make_unique<Ingestor>(*store_, options_.ingest);
+  // One per hardware thread: at most that many second shares can run at
+  // once anyway; one waiting in the queue is run by its own upload.
+  fit_workers_ = std::make_unique<FitWorkers>(
+      static_cast<int>(std::max(1u, std::thread::hardware_concurrency())));
 }
 
 FrictionLibrary::~FrictionLibrary() {
@@ -604,6 +609,9 @@ FrictionLibrary::ModelSetFit FrictionLibrary::FitModelSet(
   };
   MaterialIdentificationOptions id_options;
   id_options.fit = fit_options;
+  id_options.post = [this](std::function<void()> task) {
+    fit_workers_->Post(std::move(task));
+  };
   const StrokePlanOptions& plan = options_.plan;
   id_options.reference = {
       plan.fn_min_n, plan.fn_max_n, plan.v_min_mm_s, plan.v_max_mm_s};

@@ -20,6 +20,8 @@
 ///   if (id.lugre.identified) { /* id.lugre.family */ }
 /// @endcode
 
+#include <functional>
+
 #include "frictiond/estimators/lugre_identification.h"
 #include "frictiond/estimators/slip_likelihood.h"
 #include "frictiond/estimators/span_coverage.h"
@@ -40,6 +42,16 @@ struct MaterialIdentificationOptions {
   /// while the regressions and the hull run (the results are the same;
   /// only the wall time differs).
   int threads = 2;
+  /// With threads = 2: where the second share runs. Unset: a new thread per
+  /// call (std::async). A long-running caller passes a function that hands
+  /// the task to a persistent worker (the daemon's FitWorkers), so a call
+  /// neither starts a thread nor begins with an empty allocator cache. The
+  /// task is claimed once: when the calling thread finishes its own share
+  /// before a worker has started the posted task, it runs the task itself,
+  /// so a busy worker never delays a call. `post` must not run the task
+  /// synchronously while holding a lock the task could need, and must not
+  /// throw after taking the task (a task it drops is run by the caller).
+  std::function<void(std::function<void()>)> post;
 };
 
 /// Every family identified from one material's strokes. A family that

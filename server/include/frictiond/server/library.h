@@ -22,6 +22,7 @@
 #include "frictiond/estimators/stochastic_model.h"
 #include "frictiond/proto/joint_json.h"
 #include "frictiond/proto/model_json.h"
+#include "frictiond/server/fit_workers.h"
 #include "frictiond/server/identification_jobs.h"
 #include "frictiond/server/ingestor.h"
 #include "frictiond/server/request_error.h"
@@ -302,6 +303,8 @@ class FrictionLibrary {
   // Per-pair locks (versions follow upload order within a pair) and the
   // pairs' parsed uploads.
   std::unique_ptr<Ingestor> ingestor_;
+  // The second share of every refit (IdentifyMaterial's `post`).
+  std::unique_ptr<FitWorkers> fit_workers_;
   std::vector<std::pair<std::string, FamilyFitter>> fitters_;
   std::mutex listeners_mu_;
   std::vector<ModelListener> listeners_;
