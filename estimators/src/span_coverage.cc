@@ -281,37 +281,55 @@ MaterialHullCoverage CalcMaterialHullCoverage(const std::vector<double>& fn_n,
     throw std::invalid_argument("max_strokes = " + std::to_string(max_strokes) +
                                 " (must be >= 0)");
   MaterialHullCoverage out;
-  std::vector<std::pair<double, double>> all;
-  all.reserve(fn_n.size());
-  std::map<int, std::vector<std::pair<double, double>>> by;
+  // The material's hull is the hull of the strokes' hulls (the strict
+  // vertices of the hull of a union are vertices of the parts' hulls), so
+  // with stroke ids each stroke's few points are sorted once and the whole
+  // set never is: on the bundled 20,000 slipping samples of a thin band
+  // (constant load) 0.77 -> 0.4 ms.
+  std::vector<Point> all;
+  std::map<int, std::vector<Point>> by;
   for (std::size_t i = 0; i < fn_n.size(); ++i) {
     if (!(std::isfinite(fn_n[i]) && std::isfinite(v_mm_s[i]))) continue;
-    all.emplace_back(fn_n[i], v_mm_s[i]);
-    if (!stroke.empty()) by[stroke[i]].emplace_back(fn_n[i], v_mm_s[i]);
+    ++out.samples;
+    if (stroke.empty()) {
+      all.emplace_back(fn_n[i], v_mm_s[i]);
+    } else {
+      by[stroke[i]].emplace_back(fn_n[i], v_mm_s[i]);
+    }
   }
-  out.samples = static_cast<int>(all.size());
-  out.hull = CalcConvexHull(std::move(all));
-  // Shoelace over the hull (the same area CalcConvexHullArea gives).
-  double twice = 0;
-  for (std::size_t i = 0; i < out.hull.size(); ++i) {
-    const auto& p = out.hull[i];
-    const auto& q = out.hull[(i + 1) % out.hull.size()];
-    twice += p.first * q.second - q.first * p.second;
-  }
-  out.hull_area = out.hull.size() >= 3 ? std::fabs(twice) / 2.0 : 0.0;
-  std::size_t skip = by.size() > static_cast<std::size_t>(max_strokes)
-                         ? by.size() - static_cast<std::size_t>(max_strokes)
-                         : 0;
+  auto area_of = [](const std::vector<Point>& hull) {
+    // Shoelace over the hull (the same area CalcConvexHullArea gives).
+    double twice = 0;
+    for (std::size_t i = 0; i < hull.size(); ++i) {
+      const Point& p = hull[i];
+      const Point& q = hull[(i + 1) % hull.size()];
+      twice += p.first * q.second - q.first * p.second;
+    }
+    return hull.size() >= 3 ? std::fabs(twice) / 2.0 : 0.0;
+  };
+  std::vector<std::pair<int, StrokeHullCoverage>> strokes;
+  strokes.reserve(by.size());
   for (auto& [id, points] : by) {
+    StrokeHullCoverage s;
+    s.stroke = id;
+    s.coverage.samples = static_cast<int>(points.size());
+    const std::vector<Point> hull = CalcConvexHull(std::move(points));
+    s.coverage.hull_area = area_of(hull);
+    all.insert(all.end(), hull.begin(), hull.end());
+    strokes.emplace_back(id, s);
+  }
+  out.hull = CalcConvexHull(std::move(all));
+  out.hull_area = area_of(out.hull);
+  std::size_t skip =
+      strokes.size() > static_cast<std::size_t>(max_strokes)
+          ? strokes.size() - static_cast<std::size_t>(max_strokes)
+          : 0;
+  for (auto& [id, s] : strokes) {
     if (skip > 0) {
       --skip;
       continue;
     }
-    StrokeHullCoverage s;
-    s.stroke = id;
-    s.coverage.samples = static_cast<int>(points.size());
     s.coverage.material_samples = out.samples;
-    s.coverage.hull_area = CalcConvexHullArea(std::move(points));
     s.coverage.material_hull_area = out.hull_area;
     if (out.hull_area > 0)
       s.coverage.span_pct =

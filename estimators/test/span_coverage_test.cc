@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <random>
 #include <stdexcept>
 #include <utility>
@@ -288,6 +289,44 @@ TEST(MaterialHullCoverage, EqualsTheOneStrokeFunctionForEveryStroke) {
                std::invalid_argument);
   EXPECT_THROW(CalcMaterialHullCoverage({1}, {1}, {}, -1),
                std::invalid_argument);
+}
+
+// The material's hull is built from the strokes' hulls: it must be exactly
+// the hull of all points (same vertices in the same order, same area) on
+// sets wider than the bundled data: thin bands (constant load), collinear
+// and one-point strokes, duplicates across strokes, strokes interleaved in
+// time, 20 seeds.
+TEST(MaterialHullCoverage, HullOfStrokeHullsEqualsHullOfAllPoints) {
+  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    std::vector<double> fn, v;
+    std::vector<int> stroke;
+    const int strokes = 1 + static_cast<int>(60 * u(rng));
+    for (int k = 0; k < strokes; ++k) {
+      const int kind = static_cast<int>(5 * u(rng));
+      const int n = kind == 4 ? 1 : 2 + static_cast<int>(300 * u(rng));
+      const double f0 = 0.5 + 4 * u(rng), v0 = 80 * u(rng);
+      for (int i = 0; i < n; ++i) {
+        double f = f0, s = v0 + 60 * u(rng);
+        if (kind == 0) f = f0 + 1e-3 * u(rng);            // thin band
+        if (kind == 1) f = f0 + u(rng), s = v0;           // horizontal line
+        if (kind == 2) f = f0 + 0.5 * u(rng), s = 2 * f;  // diagonal line
+        if (kind == 3) f = std::round(4 * u(rng)), s = std::round(8 * u(rng));
+        fn.push_back(f);
+        v.push_back(s);
+        stroke.push_back(kind == 3 ? static_cast<int>(3 * u(rng)) : k + 10);
+      }
+    }
+    std::vector<std::pair<double, double>> all;
+    for (std::size_t i = 0; i < fn.size(); ++i) all.emplace_back(fn[i], v[i]);
+    const std::vector<std::pair<double, double>> want = CalcConvexHull(all);
+    const MaterialHullCoverage m = CalcMaterialHullCoverage(fn, v, stroke);
+    EXPECT_EQ(m.hull, want) << "seed " << seed;
+    EXPECT_EQ(m.hull_area, CalcConvexHullArea(all)) << "seed " << seed;
+    EXPECT_EQ(m.hull, CalcMaterialHullCoverage(fn, v, {}).hull)
+        << "seed " << seed;
+  }
 }
 
 }  // namespace
