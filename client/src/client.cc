@@ -33,6 +33,11 @@ struct FrictionClient::Impl {
     http.set_read_timeout(sec, usec);
     http.set_write_timeout(sec, usec);
     http.set_keep_alive(true);
+    // httplib writes a request's headers and body separately: with Nagle on,
+    // the body waited for the daemon's delayed ACK of the headers, 40 ms on
+    // every upload after the first on a kept-alive connection (measured with
+    // bench/upload: 43 ms per upload, 2.1 ms with TCP_NODELAY).
+    http.set_tcp_nodelay(true);
     if (!o.robot.empty()) headers.emplace("X-Robot-Id", o.robot);
     if (!o.token.empty()) headers.emplace("Authorization", "Bearer " + o.token);
   }
