@@ -261,6 +261,30 @@ TEST_F(ClientTest, LuGreBreakawayRemoteMatchesLocalAndTruth) {
   }
 }
 
+// `friction upload` sends the global --token (it built its own client
+// options without it, so every upload was refused with 401 once uploads
+// needed a token), the robot id and the labelling parameters.
+TEST_F(ClientTest, CliUploadSendsTheTokenAndRobot) {
+  const std::string csv = Write("cli_upload.csv", SimulatedCsv(41));
+  CliRun r = Friction("upload cl-cli-up " + csv + " --robot arm-7");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  nlohmann::json body = nlohmann::json::parse(r.out, nullptr, false);
+  ASSERT_TRUE(body.is_object()) << r.out;
+  EXPECT_EQ(body.value("version", 0), 1) << r.out;
+  r = Friction("upload cl-cli-up " + csv + " --slip-peak-mm-s 10");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  body = nlohmann::json::parse(r.out, nullptr, false);
+  EXPECT_EQ(body.value("version", 0), 2) << r.out;
+  // Without a token the daemon refuses it, and the CLI says why.
+  const std::string cmd = testing::BinaryPath("friction") + " --server " +
+                          daemon_->base_url() + " upload cl-cli-up " + csv +
+                          " >/dev/null 2>" + dir_->path() + "/noauth.err";
+  const int status = std::system(cmd.c_str());
+  EXPECT_NE(WIFEXITED(status) ? WEXITSTATUS(status) : -1, 0);
+  EXPECT_NE(ReadAll(dir_->path() + "/noauth.err").find("401"),
+            std::string::npos);
+}
+
 TEST_F(ClientTest, CliFitPredictGrip) {
   const std::string csv = Write("cli_stroke.csv", SimulatedCsv(31));
   // fit: offline, no daemon needed.

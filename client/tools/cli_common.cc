@@ -8,13 +8,17 @@
 
 namespace frictiond::cli {
 
-FrictionClient MakeClient(const Globals& g) {
+ClientOptions MakeClientOptions(const Globals& g) {
   ClientOptions o;
   o.base_url = g.server;
   o.fingertip = g.fingertip;
   o.cache_dir = g.cache_dir;
   o.token = g.token;
-  return FrictionClient(o);
+  return o;
+}
+
+FrictionClient MakeClient(const Globals& g) {
+  return FrictionClient(MakeClientOptions(g));
 }
 
 void RunCommand(const std::function<void()>& body) {

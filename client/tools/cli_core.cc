@@ -183,9 +183,7 @@ void RegisterCoreCommands(CLI::App& app, Globals& g) {
     cmd->callback([&g] {
       const std::string csv = ReadFileOrFail(file);
       RunCommand([&] {
-        ClientOptions o;
-        o.base_url = g.server;
-        o.fingertip = g.fingertip;
+        ClientOptions o = MakeClientOptions(g);  // the token included
         o.robot = robot;
         o.timeout_s = 60;
         FrictionClient c(o);

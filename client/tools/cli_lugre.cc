@@ -33,10 +33,7 @@ void RegisterLuGreCommands(CLI::App& app, Globals& g) {
                 "simulation)");
   cmd->callback([&g] {
     try {
-      ClientOptions o;
-      o.base_url = g.server;
-      o.fingertip = g.fingertip;
-      FrictionClient client(o);
+      FrictionClient client = MakeClient(g);
       const std::optional<double> mass_kg =
           std::isnan(mass) ? std::nullopt : std::optional<double>(mass);
       if (!local) {
