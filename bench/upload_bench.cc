@@ -203,8 +203,7 @@ double Throughput(const testing::DaemonProcess& daemon,
     clients.emplace_back([&, c] {
       // The client library a robot uploads with (one keep-alive connection).
       ClientOptions o;
-      o.base_url = "http://" + daemon.options().bind + ":" +
-                   std::to_string(daemon.port());
+      o.base_url = daemon.base_url();
       o.token = daemon.options().operator_token;
       o.timeout_s = 60.0;
       FrictionClient client(o);

@@ -27,11 +27,11 @@ struct Globals {
 /// Reads and parses a stroke CSV file.
 /// @throws CLI::RuntimeError(2) after printing "FILE: line N: ..." to stderr.
 StrokeData ReadStrokeCsvFile(const std::string& path);
-/// A client for the daemon and fingertip the global options name.
 /// The client options every command starts from: server, fingertip, cache
 /// directory and token of the global flags (one place, so that no command
 /// forgets the token).
 ClientOptions MakeClientOptions(const Globals& g);
+/// A client for the daemon and fingertip the global options name.
 FrictionClient MakeClient(const Globals& g);
 /// Runs a command body. A ClientError prints the daemon's message (with the
 /// stroke to perform when the daemon requested an identification, else the

@@ -129,8 +129,11 @@ std::vector<std::pair<double, double>> CalcConvexHull(
   return hull;
 }
 
-double CalcConvexHullArea(std::vector<std::pair<double, double>> p) {
-  const std::vector<Point> hull = CalcConvexHull(std::move(p));
+namespace {
+
+// Shoelace area of a hull polygon (CalcConvexHull's order); 0 below 3
+// vertices.
+double PolygonArea(const std::vector<Point>& hull) {
   if (hull.size() < 3) return 0.0;
   double twice_area = 0.0;
   for (std::size_t i = 0; i < hull.size(); ++i) {
@@ -139,6 +142,12 @@ double CalcConvexHullArea(std::vector<std::pair<double, double>> p) {
     twice_area += a.first * b.second - b.first * a.second;
   }
   return std::fabs(twice_area) / 2.0;
+}
+
+}  // namespace
+
+double CalcConvexHullArea(std::vector<std::pair<double, double>> p) {
+  return PolygonArea(CalcConvexHull(std::move(p)));
 }
 
 SpanCoverage CalcSpanCoverage(const std::vector<double>& fn_n,
@@ -285,7 +294,7 @@ MaterialHullCoverage CalcMaterialHullCoverage(const std::vector<double>& fn_n,
   // vertices of the hull of a union are vertices of the parts' hulls), so
   // with stroke ids each stroke's few points are sorted once and the whole
   // set never is: on the bundled 20,000 slipping samples of a thin band
-  // (constant load) 0.77 -> 0.4 ms.
+  // (constant load) 0.77 -> 0.47 ms.
   std::vector<Point> all;
   std::map<int, std::vector<Point>> by;
   for (std::size_t i = 0; i < fn_n.size(); ++i) {
@@ -297,34 +306,24 @@ MaterialHullCoverage CalcMaterialHullCoverage(const std::vector<double>& fn_n,
       by[stroke[i]].emplace_back(fn_n[i], v_mm_s[i]);
     }
   }
-  auto area_of = [](const std::vector<Point>& hull) {
-    // Shoelace over the hull (the same area CalcConvexHullArea gives).
-    double twice = 0;
-    for (std::size_t i = 0; i < hull.size(); ++i) {
-      const Point& p = hull[i];
-      const Point& q = hull[(i + 1) % hull.size()];
-      twice += p.first * q.second - q.first * p.second;
-    }
-    return hull.size() >= 3 ? std::fabs(twice) / 2.0 : 0.0;
-  };
-  std::vector<std::pair<int, StrokeHullCoverage>> strokes;
+  std::vector<StrokeHullCoverage> strokes;
   strokes.reserve(by.size());
   for (auto& [id, points] : by) {
     StrokeHullCoverage s;
     s.stroke = id;
     s.coverage.samples = static_cast<int>(points.size());
     const std::vector<Point> hull = CalcConvexHull(std::move(points));
-    s.coverage.hull_area = area_of(hull);
+    s.coverage.hull_area = PolygonArea(hull);
     all.insert(all.end(), hull.begin(), hull.end());
-    strokes.emplace_back(id, s);
+    strokes.push_back(s);
   }
   out.hull = CalcConvexHull(std::move(all));
-  out.hull_area = area_of(out.hull);
+  out.hull_area = PolygonArea(out.hull);
   std::size_t skip =
       strokes.size() > static_cast<std::size_t>(max_strokes)
           ? strokes.size() - static_cast<std::size_t>(max_strokes)
           : 0;
-  for (auto& [id, s] : strokes) {
+  for (StrokeHullCoverage& s : strokes) {
     if (skip > 0) {
       --skip;
       continue;
