@@ -28,6 +28,33 @@ void FitWorkers::Post(std::function<void()> task) {
   cv_.notify_one();
 }
 
+void FitWorkers::PostShare(std::function<void()> task) {
+  Post([this, task = std::move(task)] {
+    {
+      std::lock_guard<std::mutex> lock(load_mu_);
+      if (2 * in_flight_ > static_cast<int>(threads_.size())) return;
+    }
+    task();
+  });
+}
+
+FitWorkers::Refit FitWorkers::Begin() {
+  std::lock_guard<std::mutex> lock(load_mu_);
+  ++in_flight_;
+  return Refit(this, 2 * in_flight_ <= static_cast<int>(threads_.size()));
+}
+
+FitWorkers::Refit::Refit(Refit&& other) noexcept
+    : pool_(other.pool_), split_(other.split_) {
+  other.pool_ = nullptr;
+}
+
+FitWorkers::Refit::~Refit() {
+  if (pool_ == nullptr) return;
+  std::lock_guard<std::mutex> lock(pool_->load_mu_);
+  --pool_->in_flight_;
+}
+
 void FitWorkers::Loop() {
   for (;;) {
     std::function<void()> task;

@@ -174,7 +174,8 @@ FrictionLibrary::FrictionLibrary(std::unique_ptr<Store> store,
   options_.ingest.max_samples_per_upload = options_.max_samples_per_upload;
   ingestor_ = std::make_unique<Ingestor>(*store_, options_.ingest);
   // One per hardware thread: at most that many second shares can run at
-  // once anyway; one waiting in the queue is run by its own upload.
+  // once anyway; one waiting in the queue is run by its own upload. A refit
+  // splits only while a core is free for its share (FitWorkers::Begin).
   fit_workers_ = std::make_unique<FitWorkers>(
       static_cast<int>(std::max(1u, std::thread::hardware_concurrency())));
 }
@@ -609,9 +610,14 @@ FrictionLibrary::ModelSetFit FrictionLibrary::FitModelSet(
   };
   MaterialIdentificationOptions id_options;
   id_options.fit = fit_options;
-  id_options.post = [this](std::function<void()> task) {
-    fit_workers_->Post(std::move(task));
-  };
+  const FitWorkers::Refit refit = fit_workers_->Begin();
+  if (refit.split()) {
+    id_options.post = [this](std::function<void()> task) {
+      fit_workers_->PostShare(std::move(task));
+    };
+  } else {
+    id_options.threads = 1;  // every core already serves a refit
+  }
   const StrokePlanOptions& plan = options_.plan;
   id_options.reference = {
       plan.fn_min_n, plan.fn_max_n, plan.v_min_mm_s, plan.v_max_mm_s};

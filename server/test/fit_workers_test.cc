@@ -4,6 +4,7 @@
 #include <chrono>
 #include <future>
 #include <mutex>
+#include <optional>
 #include <stdexcept>
 #include <thread>
 #include <vector>
@@ -54,6 +55,55 @@ TEST(FitWorkers, TwoWorkersRunTwoTasksAtOnce) {
             std::future_status::ready);
   EXPECT_EQ(b_done.get_future().wait_for(std::chrono::seconds(10)),
             std::future_status::ready);
+}
+
+// Work-conserving: with two hardware threads one refit splits, a second
+// refit in flight beside it does not; when both are gone, a refit splits
+// again.
+TEST(FitWorkers, SplitsOnlyWhileEveryRefitCanHaveTwoThreads) {
+  FitWorkers two(2);
+  {
+    const FitWorkers::Refit a = two.Begin();
+    EXPECT_TRUE(a.split());
+    const FitWorkers::Refit b = two.Begin();
+    EXPECT_FALSE(b.split());
+  }
+  EXPECT_TRUE(two.Begin().split());
+  FitWorkers four(4);
+  const FitWorkers::Refit a = four.Begin();
+  const FitWorkers::Refit b = four.Begin();
+  const FitWorkers::Refit c = four.Begin();
+  EXPECT_TRUE(a.split());
+  EXPECT_TRUE(b.split());
+  EXPECT_FALSE(c.split());
+  FitWorkers one(1);
+  EXPECT_FALSE(one.Begin().split());
+}
+
+// A posted share runs while the pool is idle, and is skipped (left to its
+// caller) when more refits are in flight than split by the time a worker
+// reaches it.
+TEST(FitWorkers, PostedShareIsSkippedWhenTheMachineBecameBusy) {
+  for (bool busy : {false, true}) {
+    SCOPED_TRACE(busy ? "a second refit began" : "alone");
+    FitWorkers two(2);
+    std::promise<void> open_a, open_b, reached;
+    std::shared_future<void> gate_a = open_a.get_future().share();
+    std::shared_future<void> gate_b = open_b.get_future().share();
+    two.Post([gate_a] { gate_a.wait(); });  // one worker each
+    two.Post([gate_b] { gate_b.wait(); });
+    const FitWorkers::Refit mine = two.Begin();
+    ASSERT_TRUE(mine.split());
+    std::atomic<int> ran{0};
+    two.PostShare([&ran] { ++ran; });
+    two.Post([&reached] { reached.set_value(); });
+    std::optional<FitWorkers::Refit> other;
+    if (busy) other.emplace(two.Begin());
+    open_a.set_value();  // one worker runs the share, then the marker
+    reached.get_future().wait();
+    EXPECT_EQ(ran.load(), busy ? 0 : 1);
+    open_b.set_value();
+  }
 }
 
 }  // namespace
