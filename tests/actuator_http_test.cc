@@ -117,7 +117,22 @@ TEST_F(ActuatorHttpTest, UploadFetchSimulateExport) {
   res = c->Get((base + "actuator-model?joint=j1").c_str());
   ASSERT_TRUE(res);
   ASSERT_EQ(res->status, 200) << res->body;
-  EXPECT_EQ(json::parse(res->body)["actuator"]["logs"].size(), 2u);
+  const json logs = json::parse(res->body)["actuator"]["logs"];
+  ASSERT_EQ(logs.size(), 2u);
+  EXPECT_EQ(logs[0].value("name", ""), "sin_sin_kp400");
+  EXPECT_EQ(logs[1].value("name", ""), "lift_and_drop_kp100");
+  // A gain beyond every integer type names the log in full (it was cast to
+  // an integer: undefined behaviour).
+  json huge = ShortLog("kp100_sin_sin", 300);
+  huge["kp"] = 1e308;
+  res = c->Post((base + "actuator-logs?joint=j2&law=coulomb_viscous").c_str(),
+                huge.dump(),
+                "application/json");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 201) << res->body;
+  EXPECT_EQ(json::parse(res->body)["actuator"]["logs"][0].value("name", ""),
+            "sin_sin_kp1e+308")
+      << res->body;
   res = c->Post((base + "actuator-simulate?joint=j1").c_str(),
                 ShortLog("kp200_sin_sin", 300).dump(),
                 "application/json");

@@ -11,12 +11,14 @@
 //   GET  /v1/materials/{id}/actuator-mjcf?joint=&version=
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "frictiond/proto/actuator_json.h"
 #include "frictiond/proto/actuator_report.h"
+#include "frictiond/proto/sim_export.h"
 #include "frictiond/server/model_lookup.h"
 #include "frictiond/server/routes.h"
 
@@ -65,6 +67,18 @@ std::string FieldOf(const std::string& message) {
   return message.substr(0, end);
 }
 
+// A log's name: its trajectory and gain, "sin_sin_kp100". The gain is
+// validated (finite, > 0) but unbounded: whole gains below 2^53 print as
+// integers (truncated, as stored names have always been), others in full
+// (a cast of 1e308 to an integer is undefined).
+std::string LogName(const std::string& trajectory, double kp) {
+  if (!(kp > 0) || !std::isfinite(kp)) return trajectory;
+  const std::string gain = kp < 9007199254740992.0
+                               ? std::to_string(static_cast<std::int64_t>(kp))
+                               : FormatRoundTrip(kp);
+  return trajectory + "_kp" + gain;
+}
+
 // Parses the body: one log, or {"logs": [...]}. Nothing is stored on error.
 std::vector<ActuatorLog> ParseLogs(const std::string& body) {
   std::vector<ActuatorLog> logs;
@@ -81,13 +95,9 @@ std::vector<ActuatorLog> ParseLogs(const std::string& body) {
         StatusCode::kInvalidArgument, "body", "body must be a JSON object");
   auto parse_one = [&](const json& x, const std::string& prefix) {
     try {
-      logs.push_back(ParseActuatorLog(
-          x.dump(),
-          x.value("trajectory", "") +
-              (x.contains("kp") && x["kp"].is_number()
-                   ? "_kp" + std::to_string(
-                                 static_cast<long>(x["kp"].get<double>()))
-                   : "")));
+      ActuatorLog log = ParseActuatorLog(x.dump());
+      log.name = LogName(x.value("trajectory", ""), log.kp);
+      logs.push_back(std::move(log));
     } catch (const std::invalid_argument& e) {
       const std::string f = FieldOf(e.what());
       throw RequestError(
