@@ -267,11 +267,8 @@ bool FrictionLibrary::PutMaterial(const std::string& id,
     if (update.description->size() > kMaxDescription)
       throw too_long(
           "description", update.description->size(), kMaxDescription);
-    // Free text: line breaks allowed, but valid UTF-8.
-    if (!IsValidUtf8(*update.description))
-      throw RequestError(StatusCode::kInvalidArgument,
-                         "description",
-                         "description: not valid UTF-8");
+    // Free text: line breaks allowed, other control characters not.
+    CheckFreeText(*update.description, "description", kMaxDescription);
   }
   if (update.tags) {
     if (update.tags->size() > kMaxTags)
@@ -299,20 +296,10 @@ bool FrictionLibrary::PutMaterial(const std::string& id,
 
 bool FrictionLibrary::PutFingertip(const Fingertip& fingertip) {
   CheckId(fingertip.id, "id");
-  for (const auto& [field, text] :
-       {std::pair<const char*, const std::string*>{"name", &fingertip.name},
-        {"description", &fingertip.description}}) {
-    if (text->size() > 4000)
-      throw RequestError(StatusCode::kInvalidArgument,
-                         field,
-                         std::string(field) + ": " +
-                             std::to_string(text->size()) +
-                             " bytes (at most 4000)");
-    if (!IsValidUtf8(*text))
-      throw RequestError(StatusCode::kInvalidArgument,
-                         field,
-                         std::string(field) + ": not valid UTF-8");
-  }
+  constexpr std::size_t kMaxFingertipText = 4000;
+  // The text rules of a material's name and description.
+  CheckText(fingertip.name, "name", kMaxFingertipText);
+  CheckFreeText(fingertip.description, "description", kMaxFingertipText);
   return store_->PutFingertip(fingertip);
 }
 

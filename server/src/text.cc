@@ -48,9 +48,12 @@ bool IsValidUtf8(std::string_view text) {
   return true;
 }
 
-void CheckText(std::string_view text,
-               const std::string& field,
-               std::size_t max_bytes) {
+namespace {
+
+void CheckTextWith(std::string_view text,
+                   const std::string& field,
+                   std::size_t max_bytes,
+                   bool line_breaks) {
   if (text.size() > max_bytes)
     throw RequestError(StatusCode::kInvalidArgument,
                        field,
@@ -64,13 +67,28 @@ void CheckText(std::string_view text,
                          field,
                          field + ": invalid UTF-8 at byte " +
                              std::to_string(i) + " (must be valid UTF-8)");
-    if (n == 1 && IsControl(static_cast<unsigned char>(text[i])))
+    const unsigned char c = static_cast<unsigned char>(text[i]);
+    if (n == 1 && IsControl(c) && !(line_breaks && (c == '\n' || c == '\r')))
       throw RequestError(StatusCode::kInvalidArgument,
                          field,
                          field + ": control character at byte " +
                              std::to_string(i) + " (must be printable text)");
     i += n;
   }
+}
+
+}  // namespace
+
+void CheckText(std::string_view text,
+               const std::string& field,
+               std::size_t max_bytes) {
+  CheckTextWith(text, field, max_bytes, /*line_breaks=*/false);
+}
+
+void CheckFreeText(std::string_view text,
+                   const std::string& field,
+                   std::size_t max_bytes) {
+  CheckTextWith(text, field, max_bytes, /*line_breaks=*/true);
 }
 
 std::string ShownText(std::string_view text, std::size_t max_chars) {

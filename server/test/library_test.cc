@@ -230,6 +230,43 @@ TEST_F(LibraryTest, PutMaterialTakesTypedFieldsAndKeepsUnsetOnes) {
   bad = {};
   bad.tags = std::vector<std::string>{std::string(65, 't')};
   refused(bad, "tags");
+  bad = {};
+  bad.description = std::string("x\a\0y", 4);  // control characters
+  refused(bad, "description");
+}
+
+// A fingertip's text follows a material's rules: a name without control
+// characters, a description that may break lines but holds no other
+// control character (an outside attack stored NUL, ESC and BEL here).
+TEST_F(LibraryTest, PutFingertipRefusesControlCharacters) {
+  Fingertip ok;
+  ok.id = "pad";
+  ok.name = "Silicone pad";
+  ok.description = "shore 30A\r\nmoulded";
+  EXPECT_TRUE(lib_.PutFingertip(ok));
+  auto refused = [&](Fingertip bad, const std::string& field) {
+    bad.id = "pad2";
+    try {
+      lib_.PutFingertip(bad);
+      ADD_FAILURE() << field << " accepted";
+    } catch (const RequestError& e) {
+      EXPECT_EQ(e.code(), StatusCode::kInvalidArgument);
+      EXPECT_EQ(e.field(), field);
+    }
+  };
+  Fingertip bad;
+  bad.name = std::string("a\0b\x1b[31mRED", 12);
+  refused(bad, "name");
+  bad = {};
+  bad.name = "a\nb";
+  refused(bad, "name");
+  bad = {};
+  bad.description = std::string("x\a\0y", 4);
+  refused(bad, "description");
+  bad = {};
+  bad.description = std::string("\xC3");
+  refused(bad, "description");
+  EXPECT_FALSE(lib_.store().GetFingertip("pad2").has_value());
 }
 
 TEST_F(LibraryTest, QueryValidationNamesTheParameter) {

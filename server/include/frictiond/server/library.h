@@ -138,7 +138,8 @@ class FrictionLibrary {
 
   // --- fingertips -----------------------------------------------------------
   /// Creates or replaces a fingertip (id, name, description; each text of
-  /// at most 4000 bytes, valid UTF-8). @return true when created.
+  /// at most 4000 bytes, valid UTF-8 without control characters; the
+  /// description may break lines: text.h). @return true when created.
   /// @throws RequestError(StatusCode::kInvalidArgument) naming the field.
   bool PutFingertip(const Fingertip& fingertip);
 

@@ -31,6 +31,13 @@ void CheckText(std::string_view text,
                const std::string& field,
                std::size_t max_bytes = kMaxNameBytes);
 
+/// Checks stored free text (descriptions): as CheckText, but line breaks
+/// (\n, \r) are allowed as well as tab.
+/// @throws RequestError(StatusCode::kInvalidArgument) naming `field`.
+void CheckFreeText(std::string_view text,
+                   const std::string& field,
+                   std::size_t max_bytes);
+
 /// A printable excerpt of outside text for messages and logs: at most
 /// `max_chars` characters, invalid bytes and control characters shown as
 /// '?', "..." appended when cut. Always valid UTF-8.
