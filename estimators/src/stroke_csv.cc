@@ -49,8 +49,14 @@ bool ValidName(std::string_view s) {
   return true;
 }
 
+// Outside text quoted in a message: at most 40 bytes, control characters
+// shown as '?' (a NUL would end the message at what(); the server's
+// ShownText, text.h, applies the same rule and also replaces invalid UTF-8).
 std::string Quote(std::string_view s) {
   std::string out(s.substr(0, 40));
+  for (char& c : out) {
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7F) c = '?';
+  }
   if (s.size() > 40) out += "...";
   return "'" + out + "'";
 }

@@ -160,6 +160,16 @@ TEST(StrokeCsv, RejectsBadInputNamingLineAndField) {
   expect_error("t_s,fn_n,ft_n,v_mm_s,t_s\n", 1, "t_s", "twice");
   expect_error(
       "t_s,fn_n,ft_n,v_mm_s,x;drop\n", 1, "header", "not a valid column name");
+  // A NUL or other control byte in a quoted cell is shown as '?': a NUL
+  // ended the message at what() and lost the reason.
+  expect_error(std::string("t_s,fn_n,ft_n,v_mm_s\n0,1,0.5\0"
+                           "9,0\n",
+                           33),
+               2,
+               "ft_n",
+               "ft_n = '0.5?9' (not a number)");
+  expect_error(
+      std::string("t_s\0x,fn_n,ft_n,v_mm_s\n", 23), 1, "header", "'t_s?x'");
 }
 
 TEST(StrokeCsv, ParsesCovariatesCommentsAndRoundTrips) {

@@ -316,7 +316,7 @@ bool FrictionLibrary::PutRobot(const std::string& id,
       if (!IsValidId(*value))
         throw RequestError(StatusCode::kInvalidArgument,
                            at + name,
-                           at + name + " = '" + value->substr(0, 64) +
+                           at + name + " = '" + ShownText(*value, 64) +
                                "' (must match [A-Za-z0-9._-]{1,64})");
     }
   }
