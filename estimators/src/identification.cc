@@ -48,12 +48,17 @@ void FitConditionalCoverageAndLuGre(
   const std::size_t n = data.size();
   std::vector<double> ratio(n);
   for (std::size_t i = 0; i < n; ++i) ratio[i] = data.ft_n[i] / data.fn_n[i];
-  out->conditional = FitConditionalSlipLikelihood(
-      data.fn_n, ratio, data.slip, options.conditional);
+  // A family that cannot be identified is a status, never an exception.
+  try {
+    out->conditional = FitConditionalSlipLikelihood(
+        data.fn_n, ratio, data.slip, options.conditional);
+  } catch (const std::exception& e) {
+    out->conditional = ConditionalSlipLikelihood{};
+    out->conditional.why = std::string("identification failed: ") + e.what();
+  }
   out->coverage = CalcSpanCoverage(slip.fn, slip.v, options.reference);
   if (options.lugre) {
-    // A family that cannot be identified is a status, never an exception
-    // (the other families stand).
+    // Likewise (the other families stand).
     try {
       out->lugre = IdentifyLuGreFromStrokes(data);
     } catch (const std::exception& e) {

@@ -119,16 +119,37 @@ ConditionalSlipLikelihood FitConditionalSlipLikelihood(
     out.why = "no finite samples";
     return out;
   }
-  const double half = 0.5 * options.window_n;
-  const double step = options.step_n;
+  double half = 0.5 * options.window_n;
+  double step = options.step_n;
   double first = options.fn_min_n, last = options.fn_max_n;
   if (std::isnan(first)) {
     // Centres on the grid of multiples of step_n, half a window inside the
     // data's Fn range (rounded to the nearest grid point).
-    first = step * std::round((fn_lo + half) / step);
-    last = step * std::round((fn_hi - half) / step);
-    if (last < first)
-      first = last = step * std::round(0.5 * (fn_lo + fn_hi) / step);
+    auto place = [&] {
+      first = step * std::round((fn_lo + half) / step);
+      last = step * std::round((fn_hi - half) / step);
+      if (last < first)
+        first = last = step * std::round(0.5 * (fn_lo + fn_hi) / step);
+    };
+    place();
+    // Departure from the paper (its 0.2 / 0.6 N suit its 0-10 N gripper):
+    // when the data's Fn range needs more than max_windows centres (a
+    // 0.5-250 N gripper needs 1,245), step and window grow by the same
+    // whole factor k until they fit; the result reports the step and
+    // window used. A range given in the options is never widened.
+    if (!((last - first) / step < options.max_windows)) {
+      const double k0 = std::ceil((fn_hi - fn_lo) / options.step_n /
+                                  std::max(1, options.max_windows - 2));
+      for (double k = std::max(2.0, k0);; k *= 2.0) {
+        step = k * options.step_n;
+        half = 0.5 * k * options.window_n;
+        place();
+        if ((last - first) / step < options.max_windows || !std::isfinite(step))
+          break;
+      }
+      out.step_n = step;
+      out.window_n = 2.0 * half;
+    }
   }
   const double span = (last - first) / step;
   if (!(span < options.max_windows)) {

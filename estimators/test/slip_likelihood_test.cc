@@ -168,6 +168,37 @@ TEST(ConditionalSlipLikelihood, ConfigurableWindowsAndUnusableWindows) {
                std::invalid_argument);
 }
 
+// A gripper's wide Fn range (0.5-250 N needs 1,245 centres at the paper's
+// 0.2 N) coarsens step and window by one whole factor instead of refusing
+// the data (an outside attack found such valid uploads refused); an
+// absurd range (Fn ~ 1e200) still fits; a range given in the options that
+// needs too many centres is refused.
+TEST(ConditionalSlipLikelihood, WideFnRangeCoarsensTheWindows) {
+  Labelled d = Simulate(60000, 31);
+  for (double& fn : d.fn) fn = 0.5 + (fn - 0.5) * (249.5 / 4.0);
+  const ConditionalSlipLikelihood L =
+      FitConditionalSlipLikelihood(d.fn, d.ratio, d.slip);
+  ASSERT_TRUE(L.valid) << L.why;
+  EXPECT_LE(L.windows.size(), 1000u);
+  EXPECT_GT(L.windows.size(), 400u);
+  const double k = L.step_n / 0.2;
+  EXPECT_NEAR(k, std::round(k), 1e-9);
+  EXPECT_GE(k, 2.0);
+  EXPECT_NEAR(L.window_n / L.step_n, 3.0, 1e-9);
+  EXPECT_NEAR(
+      L.windows[1].fn_center_n - L.windows[0].fn_center_n, L.step_n, 1e-9);
+  for (double& fn : d.fn) fn *= 1e200;
+  const ConditionalSlipLikelihood huge =
+      FitConditionalSlipLikelihood(d.fn, d.ratio, d.slip);
+  EXPECT_LE(huge.windows.size(), 1000u);
+  EXPECT_TRUE(std::isfinite(huge.step_n));
+  ConditionalSlipOptions o;
+  o.fn_min_n = 0.0;
+  o.fn_max_n = 250.0;
+  EXPECT_THROW(FitConditionalSlipLikelihood(d.fn, d.ratio, d.slip, o),
+               std::invalid_argument);
+}
+
 // Window membership is exactly lo <= Fn < hi, also for Fn on the window
 // bounds (quantised loads), for overlapping and for gapped windows, and
 // for samples outside every window.

@@ -53,6 +53,20 @@ TEST_F(LibraryTest, RefitAddsVersionsAndCacheServesNewest) {
   EXPECT_TRUE(served["stochastic"]["coefficients"].contains("fn_n"));
 }
 
+// A gripper's wide Fn range is a valid upload: eq. (2)'s windows coarsen
+// (slip_likelihood.h) instead of the upload being refused with a 400 that
+// named no field (found by an outside attack run at 0.5-250 N).
+TEST_F(LibraryTest, WideFnRangeUploadIsStored) {
+  testing::SimulationSpec spec;
+  spec.strokes = 40;
+  spec.fn_min_n = 0.5;
+  spec.fn_max_n = 250.0;
+  const IngestResult r = lib_.IngestStrokes(
+      "gripper", FormatStrokeCsv(testing::SimulateStrokes(spec, 3)), {});
+  EXPECT_EQ(r.version, 1);
+  ASSERT_TRUE(lib_.FindModel("gripper", "default"));
+}
+
 TEST_F(LibraryTest, LabellingOfAnUploadIsReusedByLaterUploads) {
   IngestOptions o;
   SlipLabelOptions l;

@@ -13,6 +13,11 @@
 ///   windows the end values are held and the answer is flagged
 ///   `extrapolated`, never silently.
 ///
+/// Departure: when the centres come from the data and its Fn range needs
+/// more than `max_windows` of them at `step_n`, step and window grow by one
+/// whole factor until they fit (the result's step_n / window_n say what was
+/// used), instead of refusing the data.
+///
 /// Noise: samples are treated as independent Bernoulli draws (the fits'
 /// covariances are the Fisher-information ones; samples within a slip
 /// episode are correlated, so they are optimistic).
@@ -65,7 +70,10 @@ struct ConditionalSlipOptions {
   int min_each_class = 5;      ///< fewest slip and fewest stick samples
   double never_level = 0.01;   ///< level of "never slips below"
   double always_level = 0.99;  ///< level of "always slips above"
-  int max_windows = 1000;      ///< refuse more window centres than this
+  /// At most this many window centres: a data-derived range that needs
+  /// more coarsens step and window (see the file comment); a range given
+  /// in fn_min_n / fn_max_n that needs more is refused.
+  int max_windows = 1000;
 
   /// True when usable; otherwise *why names the field, value and rule.
   bool IsValid(std::string* why) const;
