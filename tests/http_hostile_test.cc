@@ -318,6 +318,39 @@ TEST_F(HostileHttpTest, SlowClientsDoNotHoldTheWorkers) {
   EXPECT_EQ(timed_out, 32);
 }
 
+// A request line the HTTP layer cannot parse gets exactly one 400 naming
+// the request line, and the connection closes (httplib answered once per
+// following header line and kept the connection: an outside attack run).
+TEST_F(HostileHttpTest, UnparsableRequestLineGetsOneAnswerAndClose) {
+  for (const std::string line :
+       {"FOO /healthz HTTP/1.1", "get /healthz HTTP/1.1", "GARBAGE"}) {
+    SCOPED_TRACE(line);
+    RawConn c(daemon_->port());
+    ASSERT_TRUE(c.ok());
+    ASSERT_TRUE(c.SendUnlessAnswered(
+        line + "\r\nHost: x\r\nAccept: */*\r\nX-A: 1\r\n\r\n"));
+    std::string all;
+    const auto until = Clock::now() + std::chrono::seconds(5);
+    while (Clock::now() < until && c.Readable(5000)) {
+      char buf[4096];
+      const ssize_t n = ::recv(c.fd(), buf, sizeof buf, 0);
+      if (n <= 0) break;  // closed: what we want
+      all.append(buf, static_cast<std::size_t>(n));
+    }
+    EXPECT_LT(Clock::now(), until) << "the connection stayed open";
+    std::size_t answers = 0;
+    for (std::size_t at = all.find("HTTP/1.1 "); at != std::string::npos;
+         at = all.find("HTTP/1.1 ", at + 1))
+      ++answers;
+    EXPECT_EQ(answers, 1u) << all;
+    EXPECT_EQ(all.rfind("HTTP/1.1 400", 0), 0u) << all;
+    EXPECT_NE(all.find("\"field\":\"request line\""), std::string::npos) << all;
+  }
+  auto res = daemon_->MakeClient()->Get("/healthz");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200);
+}
+
 TEST_F(HostileHttpTest, ConnectionsBeyondTheCapGet503) {
   // 80 silent connections against --max-connections 64: the excess is
   // answered 503 at once (well before the 7 s header deadline).

@@ -5,6 +5,8 @@
 #include <chrono>
 #include <cstdint>
 #include <iostream>
+#include <set>
+#include <string>
 
 #include <httplib.h>
 
@@ -187,6 +189,23 @@ void RejectAndClose(httplib::Response& res,
   res.set_content(ErrorJson(status, detail, field), "application/json");
   if (auto* strm = internal::ConnectionStream::Current())
     strm->CloseAfterResponse();
+}
+
+// Whether httplib's parse of the request line succeeded (then a 400 of its
+// own came from a header): a method it knows and HTTP/1.0 or 1.1.
+bool RequestLineIsValid(const httplib::Request& req) {
+  static const std::set<std::string> kMethods = {"GET",
+                                                 "HEAD",
+                                                 "POST",
+                                                 "PUT",
+                                                 "DELETE",
+                                                 "CONNECT",
+                                                 "OPTIONS",
+                                                 "TRACE",
+                                                 "PATCH",
+                                                 "PRI"};
+  return kMethods.count(req.method) > 0 &&
+         (req.version == "HTTP/1.1" || req.version == "HTTP/1.0");
 }
 
 HttpRequest ToHttpRequest(const httplib::Request& req) {
@@ -386,13 +405,35 @@ HttpServer::HttpServer(HttpOptions options)
   svr.Options(".*", handle);
   // Errors httplib produces itself (400 on malformed requests, 414): JSON.
   svr.set_error_handler(httplib::Server::HandlerWithResponse(
-      [](const httplib::Request&, httplib::Response& res) {
+      [](const httplib::Request& req, httplib::Response& res) {
         if (!res.body.empty())
           return httplib::Server::HandlerResponse::Unhandled;
+        if (res.status == 400) {
+          // httplib's own 400: a request line or header it could not parse
+          // (unknown or lower-case method, no version). httplib would keep
+          // the connection and read each following header line as a new
+          // request, answering 400 once per line (an outside attack saw 3-4
+          // answers to one request). The rest of the request cannot be
+          // framed: close after this answer.
+          RejectAndClose(res,
+                         400,
+                         "malformed request line or header (must be METHOD "
+                         "TARGET HTTP/1.x with an upper-case method, then "
+                         "Name: value lines)",
+                         RequestLineIsValid(req) ? "header" : "request line");
+          return httplib::Server::HandlerResponse::Handled;
+        }
         std::string detail = "request rejected by the HTTP layer";
-        if (res.status == 413)
+        std::string field;
+        if (res.status == 413) {
           detail = "body larger than the limit (see --max-body-mb)";
-        res.set_content(ErrorJson(res.status, detail), "application/json");
+          field = "body";
+        } else if (res.status == 414) {
+          detail = "request target longer than the limit";
+          field = "target";
+        }
+        res.set_content(ErrorJson(res.status, detail, field),
+                        "application/json");
         return httplib::Server::HandlerResponse::Handled;
       }));
   svr.set_exception_handler(
