@@ -351,6 +351,31 @@ TEST_F(HostileHttpTest, UnparsableRequestLineGetsOneAnswerAndClose) {
   EXPECT_EQ(res->status, 200);
 }
 
+// A body that stops short of its Content-Length gets 408 naming the body
+// once the client has sent nothing for the read timeout (10 s); the
+// connection then closes. Before, the timed-out read marked the connection
+// failed, so the 408 was never written (an outside attack run saw the
+// connection close after 10 s with no answer).
+TEST_F(HostileHttpTest, StalledBodyGets408) {
+  RawConn c(daemon_->port());
+  ASSERT_TRUE(c.ok());
+  ASSERT_TRUE(c.SendUnlessAnswered(
+      "POST /v1/materials/stall/strokes HTTP/1.1\r\nHost: x\r\n" +
+      AuthHeader() +
+      "Content-Type: text/csv\r\nContent-Length: 100\r\n\r\nt_s,"));
+  const auto t0 = Clock::now();
+  std::string body;
+  const int status = c.ReadAnswer(&body, 15000);
+  const double waited =
+      std::chrono::duration<double>(Clock::now() - t0).count();
+  ExpectJsonError(status, body, 408);
+  EXPECT_NE(body.find("\"field\":\"body\""), std::string::npos) << body;
+  EXPECT_GT(waited, 8.0);
+  char more = 0;
+  EXPECT_FALSE(c.Readable(3000) && ::recv(c.fd(), &more, 1, 0) > 0)
+      << "bytes after the answer";
+}
+
 TEST_F(HostileHttpTest, ConnectionsBeyondTheCapGet503) {
   // 80 silent connections against --max-connections 64: the excess is
   // answered 503 at once (well before the 7 s header deadline).

@@ -121,12 +121,15 @@ ssize_t ConnectionStream::read(char* ptr, size_t size) {
   while (pos_ >= buf_.size()) {
     buf_.clear();
     pos_ = 0;
-    if (failed_) return -1;
+    if (failed_ || timed_out_) return -1;
     const int wait_ms =
         std::min(limits_.read_timeout_ms, MillisUntil(deadline_));
     if (SteadyClock::now() >= deadline_ || !WaitFor(fd_, POLLIN, wait_ms)) {
-      if (SteadyClock::now() >= deadline_) timed_out_ = true;
-      failed_ = true;
+      // The client sent nothing for the read timeout, or the request
+      // deadline passed: no more reads, but the socket still carries the
+      // answer (408). Until stop 22 this set failed_, so the 408 was
+      // never written and the client saw the connection close.
+      timed_out_ = true;
       return -1;
     }
     char chunk[8192];
@@ -468,7 +471,7 @@ void GuardedServer::ServeOne(Conn conn) {
       }
     }
     if (!ok || connection_closed || close_connection || strm.failed() ||
-        strm.close_after() || stopping_) {
+        strm.timed_out() || strm.close_after() || stopping_) {
       {
         std::lock_guard<std::mutex> lock(queue_mu_);
         serving_fds_.erase(conn.fd);

@@ -87,9 +87,10 @@ class ConnectionStream : public httplib::Stream {
 
   /// Bytes read from the socket but not consumed (a pipelined request).
   std::string TakeLeftover();
-  /// The whole-request deadline passed during a read.
+  /// A read waited the read timeout without data, or the whole-request
+  /// deadline passed: no more reads; an answer (408) can still be written.
   bool timed_out() const { return timed_out_; }
-  /// A read or write failed (or timed out): the connection is unusable.
+  /// A read or write failed: the connection is unusable.
   bool failed() const { return failed_; }
   /// Close the connection after this response (unread body bytes remain).
   void CloseAfterResponse() { close_after_ = true; }

@@ -387,8 +387,11 @@ HttpServer::HttpServer(HttpOptions options)
                            " bytes (see --max-body-mb)",
                        "body");
       } else if (strm && strm->timed_out()) {
-        RejectAndClose(
-            res, 408, "body not complete within the request deadline", "body");
+        RejectAndClose(res,
+                       408,
+                       "body not complete in time (the client stopped "
+                       "sending, or the request deadline passed)",
+                       "body");
       } else {
         RejectAndClose(res, 400, "body: malformed or cut short", "body");
       }
