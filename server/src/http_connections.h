@@ -151,6 +151,10 @@ class GuardedServer : public httplib::Server {
     SteadyClock::time_point deadline;
     int served = 0;
     ConnectionAddresses addresses;
+    /// Answered and shut for writing: the gate reads and drops what the
+    /// client still sends until it closes or `deadline` (lingering close).
+    bool draining = false;
+    std::size_t drained = 0;
   };
 
   bool process_and_close_socket(socket_t sock) override;
