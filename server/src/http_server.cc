@@ -83,20 +83,26 @@ struct RouteEntry {
   HttpHandler handler;
 };
 
+// Segments between slashes. One leading and one trailing slash are
+// ignored; an empty segment inside the path ("a//b", or a %2F that httplib
+// decoded before routing) is kept, so it matches no route instead of
+// vanishing: "/v1/materials/%2F/model" was served as material "model" and
+// recorded an identification request for it (outside attack run).
 std::vector<std::string> SplitPath(const std::string& path) {
   std::vector<std::string> out;
-  std::size_t i = 0;
-  while (i < path.size()) {
-    if (path[i] == '/') {
-      ++i;
-      continue;
+  std::size_t begin = !path.empty() && path[0] == '/' ? 1 : 0;
+  std::size_t end = path.size();
+  if (end > begin && path[end - 1] == '/') --end;
+  if (begin >= end) return out;
+  for (std::size_t i = begin;;) {
+    const std::size_t j = path.find('/', i);
+    if (j == std::string::npos || j >= end) {
+      out.push_back(path.substr(i, end - i));
+      return out;
     }
-    std::size_t j = path.find('/', i);
-    if (j == std::string::npos) j = path.size();
     out.push_back(path.substr(i, j - i));
-    i = j;
+    i = j + 1;
   }
-  return out;
 }
 
 // Matches path segments against a route; fills captures.

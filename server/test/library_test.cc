@@ -133,6 +133,17 @@ TEST_F(LibraryTest, BadCsvNamesLineAndFieldAndStoresNothing) {
   EXPECT_TRUE(lib_.ListMaterials().empty());
 }
 
+// An empty path segment (e.g. a %2F the HTTP layer decoded before
+// routing) matches no route: "/v1/materials/%2F/model" was served as the
+// lookup of material "model" and recorded an identification request.
+TEST_F(LibraryTest, EmptyPathSegmentMatchesNoRoute) {
+  EXPECT_EQ(Get("/v1/materials///model").status, 404);
+  EXPECT_EQ(Get("/v1/materials//model").status, 400);  // empty id
+  EXPECT_TRUE(lib_.store().ListJobs(false).empty());
+  EXPECT_EQ(Get("/v1/fingertips").status, 200);
+  EXPECT_EQ(Get("/v1/fingertips/").status, 404);  // as before
+}
+
 TEST_F(LibraryTest, UnknownMaterialRecordsOneIdentificationRequest) {
   const HttpResponse r1 = Get("/v1/materials/canvas/model");
   const HttpResponse r2 =
