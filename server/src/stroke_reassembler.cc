@@ -42,6 +42,8 @@ bool ReassemblerOptions::IsValid(std::string* why) const {
   if (max_open_strokes < 1)
     return fail("max_open_strokes = " + std::to_string(max_open_strokes) +
                 " (must be >= 1)");
+  if (max_total_samples < 1)
+    return fail("max_total_samples = 0 (must be >= 1)");
   if (!(resend_after_s > 0))
     return fail("resend_after_s = " + Num(resend_after_s) + " (must be > 0)");
   if (!(give_up_after_s > resend_after_s))
@@ -182,9 +184,15 @@ ChunkOutcome StrokeReassembler::Add(const StrokeChunk& chunk, double now_s) {
                                   std::to_string(options_.max_samples) +
                                   " samples");
   }
+  if (total_samples_ + chunk.t_s.size() > options_.max_total_samples)
+    throw std::invalid_argument(
+        "n_samples: the strokes being reassembled would exceed " +
+        std::to_string(options_.max_total_samples) +
+        " samples in all (retry when they are complete)");
   Partial& p = strokes_[key];
   if (chunk_total > 0) p.total = chunk_total;
   p.samples += chunk.t_s.size();
+  total_samples_ += chunk.t_s.size();
   p.last_chunk_s = now_s;
   p.last_resend_s = -1;
   p.chunks.emplace(chunk.seq, chunk);
@@ -204,6 +212,7 @@ StrokeData StrokeReassembler::Take(const StrokeKey& key) {
     throw std::logic_error("StrokeReassembler::Take: stroke not complete");
   Partial p = std::move(it->second);
   strokes_.erase(it);
+  total_samples_ -= p.samples;
   StrokeData d;
   d.Reserve(p.samples);
   double last_t = -INFINITY;
@@ -223,7 +232,11 @@ StrokeData StrokeReassembler::Take(const StrokeKey& key) {
 }
 
 bool StrokeReassembler::Drop(const StrokeKey& key) {
-  return strokes_.erase(key) > 0;
+  auto it = strokes_.find(key);
+  if (it == strokes_.end()) return false;
+  total_samples_ -= it->second.samples;
+  strokes_.erase(it);
+  return true;
 }
 
 std::vector<ReassemblyEvent> StrokeReassembler::Poll(double now_s) {
@@ -243,6 +256,7 @@ std::vector<ReassemblyEvent> StrokeReassembler::Poll(double now_s) {
           Num(options_.give_up_after_s) +
           " s); the stroke was dropped, stream it again";
       events.push_back(std::move(e));
+      total_samples_ -= p.samples;
       it = strokes_.erase(it);
       continue;
     }

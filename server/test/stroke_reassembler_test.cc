@@ -104,6 +104,43 @@ TEST(StrokeReassembler, AsksAgainThenGivesUp) {
   EXPECT_EQ(r.open_strokes(), 0u);
 }
 
+// The samples held over all open strokes are bounded: a chunk beyond the
+// total is rejected (nothing kept), and Take, Drop and expiry give the room
+// back.
+TEST(StrokeReassembler, TotalSamplesAreBoundedAcrossStrokes) {
+  ReassemblerOptions o;
+  o.max_total_samples = 12;
+  o.give_up_after_s = 2.0;
+  StrokeReassembler r(o);
+  auto chunk = [](int stroke, int seq, int total, bool last = false) {
+    StrokeChunk c = MakeChunk(seq, total, last, /*n=*/5);
+    c.stroke = stroke;
+    return c;
+  };
+  r.Add(chunk(0, 0, 2), 0.0);
+  r.Add(chunk(1, 0, 2), 0.0);
+  EXPECT_EQ(r.total_samples(), 10u);
+  try {
+    r.Add(chunk(2, 0, 2), 0.0);
+    ADD_FAILURE() << "accepted beyond the total";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("n_samples"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(r.open_strokes(), 2u);
+  EXPECT_EQ(r.total_samples(), 10u);
+  EXPECT_TRUE(r.Drop({7, 1}));
+  EXPECT_EQ(r.total_samples(), 5u);
+  EXPECT_EQ(r.Add(chunk(0, 1, 2, /*last=*/true), 0.1), ChunkOutcome::kComplete);
+  EXPECT_EQ(r.total_samples(), 10u);
+  EXPECT_EQ(r.Take({7, 0}).size(), 10u);
+  EXPECT_EQ(r.total_samples(), 0u);
+  r.Add(chunk(3, 0, 2), 1.0);
+  r.Poll(5.0);  // expired
+  EXPECT_EQ(r.open_strokes(), 0u);
+  EXPECT_EQ(r.total_samples(), 0u);
+}
+
 TEST(StrokeReassembler, UnknownEndIsReportedAsMissing) {
   StrokeReassembler r;
   r.Add(MakeChunk(0, 0), 0.0);

@@ -35,6 +35,11 @@ struct ReassemblerOptions {
   int max_samples_per_chunk = 10000;    ///< samples per chunk
   std::size_t max_samples = 2'000'000;  ///< samples per stroke
   int max_open_strokes = 64;            ///< strokes reassembled at once
+  /// Samples held over all open strokes (8e6: 256 MB of samples). The
+  /// per-stroke limits alone allowed 64 x 2e6 samples (4 GB); an outside
+  /// attack run (unsigned LCM, 70 never-finished strokes) grew the daemon
+  /// to 800 MB and rising.
+  std::size_t max_total_samples = 8'000'000;
   /// A stroke with chunks missing and no chunk for this long gets a resend
   /// request [s] (and again every resend_after_s).
   double resend_after_s = 0.5;
@@ -120,6 +125,8 @@ class StrokeReassembler {
   std::vector<ReassemblyEvent> Poll(double now_s);
 
   std::size_t open_strokes() const { return strokes_.size(); }
+  /// Samples held over all open strokes.
+  std::size_t total_samples() const { return total_samples_; }
   const ReassemblerOptions& options() const { return options_; }
 
  private:
@@ -135,6 +142,7 @@ class StrokeReassembler {
 
   ReassemblerOptions options_;
   std::map<StrokeKey, Partial> strokes_;
+  std::size_t total_samples_ = 0;
 };
 
 }  // namespace frictiond
