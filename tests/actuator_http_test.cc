@@ -94,6 +94,17 @@ TEST_F(ActuatorHttpTest, UploadFetchSimulateExport) {
   EXPECT_EQ(json::parse(res->body).value("field", ""),
             "logs[1].entries[7].goal_position")
       << res->body;
+  // 100,000 levels of nesting: one request used to crash the daemon (the
+  // route serialised the parsed document recursively); now 400, daemon up.
+  for (const char* route : {"actuator-logs?joint=j1"}) {
+    res = c->Post((base + route).c_str(),
+                  "{\"name\": " + std::string(100000, '[') +
+                      std::string(100000, ']') + "}",
+                  "application/json");
+    ASSERT_TRUE(res) << route << ": " << httplib::to_string(res.error());
+    EXPECT_EQ(res->status, 400) << res->body.substr(0, 300);
+    EXPECT_EQ(json::parse(res->body).value("field", ""), "body");
+  }
   res = c->Post((base + "actuator-logs?joint=j1").c_str(),
                 "{\"mass\": 1",
                 "application/json");
@@ -133,6 +144,12 @@ TEST_F(ActuatorHttpTest, UploadFetchSimulateExport) {
   EXPECT_EQ(json::parse(res->body)["actuator"]["logs"][0].value("name", ""),
             "sin_sin_kp1e+308")
       << res->body;
+  res = c->Post(
+      (base + "actuator-simulate?joint=j1").c_str(),
+      "{\"name\": " + std::string(100000, '[') + std::string(100000, ']') + "}",
+      "application/json");
+  ASSERT_TRUE(res) << httplib::to_string(res.error());
+  EXPECT_EQ(res->status, 400) << res->body.substr(0, 300);
   res = c->Post((base + "actuator-simulate?joint=j1").c_str(),
                 ShortLog("kp200_sin_sin", 300).dump(),
                 "application/json");

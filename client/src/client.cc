@@ -4,6 +4,8 @@
 
 #include <httplib.h>
 
+#include "frictiond/proto/json_parse.h"
+
 #include "model_cache.h"
 
 namespace frictiond {
@@ -61,7 +63,7 @@ json Check(const httplib::Result& res,
                       what + ": cannot reach frictiond at " + base_url + " (" +
                           httplib::to_string(res.error()) + ")");
   }
-  json body = json::parse(res->body, nullptr, false);
+  json body = ParseJsonOrDiscarded(res->body);
   if (res->status >= 400) {
     std::string msg = what + ": HTTP " + std::to_string(res->status);
     if (body.is_object() && body.contains("detail"))

@@ -14,6 +14,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include "frictiond/proto/json_parse.h"
 #include "frictiond/proto/model_json.h"
 
 namespace frictiond::internal {
@@ -174,7 +175,7 @@ std::optional<CachedEntry> ModelCache::Get(const std::string& material,
     return std::runtime_error("the cached model " + path + " is corrupted (" +
                               why + ")");
   };
-  const json doc = json::parse(ss.str(), nullptr, false);
+  const json doc = ParseJsonOrDiscarded(ss.str());
   if (doc.is_discarded()) throw corrupted("not valid JSON");
   if (!doc.is_object() || doc.value("format", "") != kFormat)
     throw corrupted(std::string("format is not ") + kFormat);

@@ -11,6 +11,7 @@
 #include "frictiond/estimators/actuator_sim.h"
 #include "frictiond/proto/actuator_json.h"
 #include "frictiond/proto/actuator_report.h"
+#include "frictiond/proto/json_parse.h"
 
 #include "cli.h"
 
@@ -107,13 +108,7 @@ void RegisterActuatorCommands(CLI::App& app, Globals& /*g*/) {
             model = ParseBamParams(ReadFileOrFail(bam_file));
           } else {
             const std::string text = ReadFileOrFail(model_file);
-            json j;
-            try {
-              j = json::parse(text);
-            } catch (const json::exception& e) {
-              throw std::invalid_argument(std::string("invalid JSON: ") +
-                                          e.what());
-            }
+            const json j = ParseJson(text, "model");
             model = ActuatorModelFromJson(j.contains("model") ? j["model"] : j);
           }
         } catch (const std::invalid_argument& e) {

@@ -13,6 +13,7 @@
 #include "frictiond/client/joint_report.h"
 #include "frictiond/estimators/joint_identification.h"
 #include "frictiond/proto/joint_json.h"
+#include "frictiond/proto/json_parse.h"
 
 #include "cli.h"
 
@@ -163,12 +164,7 @@ void RegisterJointCommands(CLI::App& app, Globals& g) {
     cmd->add_option("FILE", file, "robot description JSON")->required();
     cmd->callback([&g] {
       RunCommand([&] {
-        json d;
-        try {
-          d = json::parse(ReadFileOrFail(file));
-        } catch (const json::parse_error& e) {
-          throw std::invalid_argument(file + ": not JSON: " + e.what());
-        }
+        const json d = ParseJson(ReadFileOrFail(file), file.c_str());
         FrictionClient client = MakeClient(g);
         std::cout << PutRobot(client, id, d).dump(2) << "\n";
       });

@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "frictiond/estimators/actuator_friction.h"
+#include "frictiond/proto/json_parse.h"
 
 namespace frictiond {
 
@@ -28,19 +29,7 @@ json ParseBounded(std::string_view text, const char* what) {
                                 std::to_string(text.size()) + " bytes (limit " +
                                 std::to_string(kMaxActuatorLogBytes) + ")");
   if (text.empty()) throw std::invalid_argument(std::string(what) + ": empty");
-  const json::parser_callback_t depth_limit =
-      [](int depth, json::parse_event_t, json&) {
-        if (depth > kMaxDepth)
-          throw std::invalid_argument("nesting deeper than " +
-                                      std::to_string(kMaxDepth));
-        return true;
-      };
-  try {
-    return json::parse(text.begin(), text.end(), depth_limit);
-  } catch (const json::exception& e) {
-    throw std::invalid_argument(std::string(what) +
-                                ": invalid JSON: " + e.what());
-  }
+  return ParseJson(text, what, kMaxDepth);
 }
 
 double Number(const json& obj,

@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include "frictiond/crypto/hmac.h"
+#include "frictiond/proto/json_parse.h"
 #include "frictiond/server/request_error.h"
 #include "frictiond/server/text.h"
 
@@ -379,7 +380,7 @@ std::optional<CreatedToken> Authenticator::BootstrapIfEmpty(
 
 void RegisterAuthRoutes(HttpServer& http, Authenticator& auth, Store& store) {
   http.Route("POST", "/v1/tokens", [&auth](const HttpRequest& req) {
-    const json body = json::parse(req.body, nullptr, false);
+    const json body = ParseJsonOrDiscarded(req.body);
     if (!body.is_object())
       throw RequestError(StatusCode::kInvalidArgument,
                          "body",

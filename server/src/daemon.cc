@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include "frictiond/crypto/hmac.h"
+#include "frictiond/proto/json_parse.h"
 #include "frictiond/server/lcm_auth.h"
 #include "frictiond/server/openapi.h"
 #include "frictiond/server/routes.h"
@@ -82,13 +83,9 @@ std::map<std::string, std::string> DaemonConfig::LoadLcmKeys() const {
 void DaemonConfig::LoadFile(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw std::invalid_argument("--config " + path + ": cannot read");
-  json j;
-  try {
-    j = json::parse(in);
-  } catch (const json::exception& e) {
-    throw std::invalid_argument("--config " + path +
-                                ": invalid JSON: " + e.what());
-  }
+  std::string text((std::istreambuf_iterator<char>(in)),
+                   std::istreambuf_iterator<char>());
+  const json j = ParseJson(text, ("--config " + path).c_str());
   if (!j.is_object())
     throw std::invalid_argument("--config " + path +
                                 ": expected a JSON object");

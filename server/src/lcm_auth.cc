@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "frictiond/crypto/hmac.h"
+#include "frictiond/proto/json_parse.h"
 
 namespace frictiond {
 
@@ -132,7 +133,7 @@ LcmAuthVerdict LcmAuthenticator::Check(
 
 std::map<std::string, std::string> ParseLcmKeys(const std::string& json_text,
                                                 const std::string& where) {
-  const nlohmann::json j = nlohmann::json::parse(json_text, nullptr, false);
+  const nlohmann::json j = ParseJsonOrDiscarded(json_text);
   if (j.is_discarded() || !j.is_object())
     throw std::invalid_argument(
         where + ": expected a JSON object {\"robot-id\": \"hex key\", ...}");

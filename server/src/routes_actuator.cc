@@ -18,6 +18,7 @@
 
 #include "frictiond/proto/actuator_json.h"
 #include "frictiond/proto/actuator_report.h"
+#include "frictiond/proto/json_parse.h"
 #include "frictiond/proto/sim_export.h"
 #include "frictiond/server/model_lookup.h"
 #include "frictiond/server/routes.h"
@@ -84,11 +85,9 @@ std::vector<ActuatorLog> ParseLogs(const std::string& body) {
   std::vector<ActuatorLog> logs;
   json j;
   try {
-    j = json::parse(body, nullptr, true, false);
-  } catch (const json::exception& e) {
-    throw RequestError(StatusCode::kInvalidArgument,
-                       "body",
-                       std::string("invalid JSON: ") + e.what());
+    j = ParseJson(body, "body");
+  } catch (const std::invalid_argument& e) {
+    throw RequestError(StatusCode::kInvalidArgument, "body", e.what());
   }
   if (!j.is_object())
     throw RequestError(

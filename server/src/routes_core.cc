@@ -1,5 +1,6 @@
 #include <cmath>
 
+#include "frictiond/proto/json_parse.h"
 #include "frictiond/server/auth.h"
 #include "frictiond/server/identification_json.h"
 #include "frictiond/server/routes.h"
@@ -25,11 +26,9 @@ json JsonObjectBody(const std::string& body, const std::string& shape) {
   json j = json::object();
   if (!body.empty()) {
     try {
-      j = json::parse(body);
-    } catch (const json::exception& e) {
-      throw RequestError(StatusCode::kInvalidArgument,
-                         "body",
-                         std::string("body: invalid JSON: ") + e.what());
+      j = ParseJson(body, "body");
+    } catch (const std::invalid_argument& e) {
+      throw RequestError(StatusCode::kInvalidArgument, "body", e.what());
     }
   }
   if (!j.is_object())

@@ -24,6 +24,7 @@
 #include "frictiond/estimators/joint_identification.h"
 #include "frictiond/estimators/repeatability.h"
 #include "frictiond/proto/joint_json.h"
+#include "frictiond/proto/json_parse.h"
 #include "frictiond/server/model_lookup.h"
 #include "frictiond/server/routes.h"
 
@@ -567,11 +568,9 @@ HttpResponse HandlePutRobot(FrictionLibrary& lib, const HttpRequest& req) {
   CheckId(id, "id");
   json j;
   try {
-    j = json::parse(req.body);
-  } catch (const json::exception& e) {
-    throw RequestError(StatusCode::kInvalidArgument,
-                       "body",
-                       std::string("body is not JSON: ") + e.what());
+    j = ParseJson(req.body, "body");
+  } catch (const std::invalid_argument& e) {
+    throw RequestError(StatusCode::kInvalidArgument, "body", e.what());
   }
   RobotDescription robot;
   try {
