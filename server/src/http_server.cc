@@ -360,14 +360,22 @@ HttpServer::HttpServer(HttpOptions options)
   auto handle = [answer](const httplib::Request& req, httplib::Response& res) {
     answer(ToHttpRequest(req), res);
   };
-  // Bodies are read here, counted while they arrive: Content-Length,
-  // chunked and length-less alike stop at max_body_bytes + 1 and answer 413.
+  // Bodies are read here, counted while they arrive: Content-Length and
+  // chunked alike stop at max_body_bytes + 1 and answer 413. A request with
+  // neither has no body (RFC 7230 3.3.3); httplib would read one to the end
+  // of the stream, so `curl -X POST` without data waited 10 s for a 408
+  // (outside attack run). What follows its headers is the next request.
   auto handle_with_body = [this, answer](
                               const httplib::Request& req,
                               httplib::Response& res,
                               const httplib::ContentReader& content_reader) {
     const std::size_t limit = impl_->options.max_body_bytes;
     HttpRequest r = ToHttpRequest(req);
+    if (!req.has_header("Content-Length") &&
+        !req.has_header("Transfer-Encoding")) {
+      answer(std::move(r), res);
+      return;
+    }
     if (req.has_header("Content-Length")) {
       // Checked against the limit before routing (pre-routing handler).
       const std::string text = req.get_header_value("Content-Length");
