@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <signal.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include "frictiond/testing/daemon_process.h"
 
@@ -190,6 +191,26 @@ TEST_F(ActuatorHttpTest, CliSimulatesBamParameters) {
       Cli("actuator simulate " + bad + " --params-bam " + params, &out, &err),
       2);
   EXPECT_NE(err.find("entries[1].position"), std::string::npos) << err;
+}
+
+// Input files are regular files of bounded size: /dev/zero was read until
+// memory ran out (outside attack run), a sparse file beyond the limit was
+// read whole before its size was checked.
+TEST_F(ActuatorHttpTest, CliRefusesDevicesAndHugeFiles) {
+  std::string out, err;
+  for (const char* cmd : {"diagnose", "fit", "report", "joint-fit"}) {
+    EXPECT_EQ(Cli(std::string(cmd) + " /dev/zero", &out, &err), 2) << cmd;
+    EXPECT_NE(err.find("/dev/zero: not a regular file"), std::string::npos)
+        << cmd << ": " << err;
+  }
+  const std::string sparse = dir_->path() + "/sparse.csv";
+  {
+    std::ofstream f(sparse);
+    f << "t_s,fn_n,ft_n,v_mm_s\n";
+  }
+  ASSERT_EQ(::truncate(sparse.c_str(), 300ll << 20), 0);
+  EXPECT_EQ(Cli("diagnose " + sparse, &out, &err), 2);
+  EXPECT_NE(err.find("(limit 268435456)"), std::string::npos) << err;
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 /// subcommands. A command reports failure by printing to stderr and throwing
 /// CLI::RuntimeError(exit_code).
 
+#include <cstdint>
 #include <functional>
 #include <string>
 
@@ -38,7 +39,11 @@ FrictionClient MakeClient(const Globals& g);
 /// error body, which names the field) and exits 1; std::invalid_argument (a
 /// bad argument caught before asking the daemon) prints why and exits 2.
 void RunCommand(const std::function<void()>& body);
-/// Reads a whole file. @throws CLI::RuntimeError(2) after printing why.
+/// Largest input file a command reads [bytes] (256 MiB).
+inline constexpr std::uintmax_t kMaxInputFileBytes = 256u << 20;
+/// Reads a whole regular file of at most kMaxInputFileBytes.
+/// @throws CLI::RuntimeError(2) after printing why (missing, not a regular
+/// file, too large).
 std::string ReadFileOrFail(const std::string& path);
 /// Checks a numeric option inside RunCommand: throws std::invalid_argument
 /// "OPTION = VALUE (must be > 0)" (or ">= 0" when zero is allowed), which

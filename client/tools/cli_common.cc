@@ -1,3 +1,4 @@
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -53,14 +54,41 @@ void RequireNonNegative(const char* option, double value) {
 }
 
 std::string ReadFileOrFail(const std::string& path) {
+  // A regular file of bounded size: `/dev/zero` or a 2 GB sparse file was
+  // read whole (23 GB of memory before the outside attack run killed it).
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (ec || !std::filesystem::exists(status)) {
+    std::cerr << "friction: " << path << ": cannot open\n";
+    throw CLI::RuntimeError(2);
+  }
+  if (!std::filesystem::is_regular_file(status)) {
+    std::cerr << "friction: " << path << ": not a regular file\n";
+    throw CLI::RuntimeError(2);
+  }
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  if (!ec && size > kMaxInputFileBytes) {
+    std::cerr << "friction: " << path << ": " << size << " bytes (limit "
+              << kMaxInputFileBytes << ")\n";
+    throw CLI::RuntimeError(2);
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     std::cerr << "friction: " << path << ": cannot open\n";
     throw CLI::RuntimeError(2);
   }
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
+  // Read at most one byte past the limit (the file may grow meanwhile).
+  std::string text;
+  char buf[1 << 16];
+  while (in.read(buf, sizeof buf) || in.gcount() > 0) {
+    text.append(buf, static_cast<std::size_t>(in.gcount()));
+    if (text.size() > kMaxInputFileBytes) {
+      std::cerr << "friction: " << path << ": more than " << kMaxInputFileBytes
+                << " bytes\n";
+      throw CLI::RuntimeError(2);
+    }
+  }
+  return text;
 }
 
 StrokeData ReadStrokeCsvFile(const std::string& path) {
