@@ -49,21 +49,25 @@ int main(int argc, char** argv) {
   // Flags are applied after the config file, so remember which were given.
   std::string db, bind, data, lcm;
   int port = -1, max_body_mb = -1, threads = -1;
-  app.add_option("--db",
-                 db,
-                 "SQLite database file (created if missing) or "
-                 "postgresql://USER@HOST:PORT/DB "
-                 "(fleet, docs/fleet.md) [frictiond.db]");
-  app.add_option("--port", port, "HTTP port [8080]");
-  app.add_option("--bind", bind, "HTTP bind address [127.0.0.1]");
+  CLI::Option* db_opt =
+      app.add_option("--db",
+                     db,
+                     "SQLite database file (created if missing) or "
+                     "postgresql://USER@HOST:PORT/DB "
+                     "(fleet, docs/fleet.md) [frictiond.db]");
+  CLI::Option* port_opt = app.add_option("--port", port, "HTTP port [8080]");
+  CLI::Option* bind_opt =
+      app.add_option("--bind", bind, "HTTP bind address [127.0.0.1]");
   app.add_option("--data",
                  data,
                  "bundled datasets loaded into an empty database, or 'none' "
                  "[project data/]");
-  app.add_option("--lcm", lcm, "LCM provider URL, or 'none' [none]");
-  app.add_option(
+  CLI::Option* lcm_opt =
+      app.add_option("--lcm", lcm, "LCM provider URL, or 'none' [none]");
+  CLI::Option* max_body_opt = app.add_option(
       "--max-body-mb", max_body_mb, "request body limit in MiB [16]");
-  app.add_option("--threads", threads, "HTTP worker threads [8]");
+  CLI::Option* threads_opt =
+      app.add_option("--threads", threads, "HTTP worker threads [8]");
   std::string lcm_keys;
   bool lcm_allow_unsigned = false;
   bool lcm_send_unsigned = false;
@@ -80,9 +84,10 @@ int main(int argc, char** argv) {
                "also send unsigned replies, requests, progress and model "
                "updates on LCM (forgeable by any device on the group; off: "
                "signed only, docs/security_lcm.md)");
-  app.add_option("--lcm-max-skew-s",
-                 lcm_max_skew_s,
-                 "timestamp window of signed LCM writes in s [30]");
+  CLI::Option* skew_opt =
+      app.add_option("--lcm-max-skew-s",
+                     lcm_max_skew_s,
+                     "timestamp window of signed LCM writes in s [30]");
   std::string open_reads, bootstrap_token;
   app.add_option("--open-reads",
                  open_reads,
@@ -99,17 +104,20 @@ int main(int argc, char** argv) {
                  "file whose first line is the bootstrap secret (keeps it off "
                  "the command line)");
   int header_timeout_ms = -1, request_timeout_ms = -1, max_connections = -1;
-  app.add_option("--header-timeout-ms",
-                 header_timeout_ms,
-                 "HTTP: request line and headers must arrive within this "
-                 "time of the request's first byte [10000]");
-  app.add_option("--request-timeout-ms",
-                 request_timeout_ms,
-                 "HTTP: a whole request (headers and body) must arrive "
-                 "within this time [60000]");
-  app.add_option("--max-connections",
-                 max_connections,
-                 "HTTP: open connections at most; more get 503 [512]");
+  CLI::Option* header_timeout_opt =
+      app.add_option("--header-timeout-ms",
+                     header_timeout_ms,
+                     "HTTP: request line and headers must arrive within this "
+                     "time of the request's first byte [10000]");
+  CLI::Option* request_timeout_opt =
+      app.add_option("--request-timeout-ms",
+                     request_timeout_ms,
+                     "HTTP: a whole request (headers and body) must arrive "
+                     "within this time [60000]");
+  CLI::Option* max_connections_opt =
+      app.add_option("--max-connections",
+                     max_connections,
+                     "HTTP: open connections at most; more get 503 [512]");
   CLI11_PARSE(app, argc, argv);
   // Files the daemon creates (database, WAL, exports) are private.
   ::umask(077);
@@ -124,17 +132,19 @@ int main(int argc, char** argv) {
 
   try {
     if (!config_file.empty()) config.LoadFile(config_file);
-    if (!db.empty()) config.db = db;
-    if (!bind.empty()) config.bind = bind;
+    if (db_opt->count()) config.db = db;
+    if (bind_opt->count()) config.bind = bind;
     if (!data.empty()) config.data_dir = data;
-    if (!lcm.empty()) config.lcm_url = lcm;
-    if (port >= 0) config.port = port;
-    if (max_body_mb >= 0) config.max_body_mb = max_body_mb;
-    if (threads >= 0) config.threads = threads;
+    if (lcm_opt->count()) config.lcm_url = lcm;
+    // A flag given is applied as given (a negative value is refused by
+    // DaemonConfig::Validate, naming the flag; it was silently ignored).
+    if (port_opt->count()) config.port = port;
+    if (max_body_opt->count()) config.max_body_mb = max_body_mb;
+    if (threads_opt->count()) config.threads = threads;
     if (!lcm_keys.empty()) config.lcm_keys_file = lcm_keys;
     if (lcm_allow_unsigned) config.lcm_allow_unsigned = true;
     if (lcm_send_unsigned) config.lcm_send_unsigned = true;
-    if (lcm_max_skew_s >= 0) config.lcm_max_skew_s = lcm_max_skew_s;
+    if (skew_opt->count()) config.lcm_max_skew_s = lcm_max_skew_s;
     if (!open_reads.empty()) config.open_reads = open_reads == "true";
     if (!bootstrap_token.empty()) {
       std::cerr << "frictiond: note: --bootstrap-token is visible to other "
@@ -149,9 +159,11 @@ int main(int argc, char** argv) {
     if (!bootstrap_token.empty()) config.bootstrap_token = bootstrap_token;
     if (!bootstrap_token_file.empty())
       config.bootstrap_token_file = bootstrap_token_file;
-    if (header_timeout_ms >= 0) config.header_timeout_ms = header_timeout_ms;
-    if (request_timeout_ms >= 0) config.request_timeout_ms = request_timeout_ms;
-    if (max_connections >= 0) config.max_connections = max_connections;
+    if (header_timeout_opt->count())
+      config.header_timeout_ms = header_timeout_ms;
+    if (request_timeout_opt->count())
+      config.request_timeout_ms = request_timeout_ms;
+    if (max_connections_opt->count()) config.max_connections = max_connections;
     frictiond::Daemon daemon(config);
     const int bound = daemon.Start();
     std::thread waiter([&daemon, stop_signals] {

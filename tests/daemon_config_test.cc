@@ -171,5 +171,44 @@ TEST(DaemonConfigTest, BadConfigIsRejectedNamingTheField) {
             std::string::npos);
 }
 
+// A flag given with an out-of-range value is refused naming the flag (exit
+// 2), never silently replaced by its default: `--port -1` served on 8080
+// and `--db ''` used ./frictiond.db (outside attack run).
+TEST(DaemonConfigTest, NegativeAndEmptyFlagsAreRefused) {
+  TempDir dir("daemon_config_flags");
+  const std::pair<const char*, const char*> cases[] = {
+      {"--port -1", "--port -1: must be in 0..65535"},
+      {"--threads -5", "--threads -5: must be in 1..256"},
+      {"--max-body-mb -1", "--max-body-mb -1: must be in 1..1024"},
+      {"--header-timeout-ms -1", "--header-timeout-ms -1: must be in"},
+      {"--lcm-max-skew-s -1", "--lcm-max-skew-s"},
+      {"--lcm-max-skew-s nan", "--lcm-max-skew-s nan"},
+      {"--bind ''", "--bind: empty"},
+  };
+  int i = 0;
+  for (const auto& [flags, expected] : cases) {
+    SCOPED_TRACE(flags);
+    const std::string db = dir.path() + "/" + std::to_string(i) + ".db";
+    const std::string err = dir.path() + "/" + std::to_string(i++) + ".err";
+    const int status = std::system(
+        ("timeout -s KILL 20 " + BinaryPath("frictiond") +
+         " --data none --db " + db + " " + flags + " >/dev/null 2>" + err)
+            .c_str());
+    ASSERT_TRUE(WIFEXITED(status)) << "status " << status;
+    EXPECT_EQ(WEXITSTATUS(status), 2) << ReadAll(err);
+    EXPECT_NE(ReadAll(err).find(expected), std::string::npos) << ReadAll(err);
+    EXPECT_FALSE(fs::exists(db));
+  }
+  const std::string err = dir.path() + "/db.err";
+  const int status =
+      std::system(("timeout -s KILL 20 " + BinaryPath("frictiond") +
+                   " --data none --db '' >/dev/null 2>" + err)
+                      .c_str());
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 2);
+  EXPECT_NE(ReadAll(err).find("--db: empty"), std::string::npos)
+      << ReadAll(err);
+}
+
 }  // namespace
 }  // namespace frictiond
