@@ -23,6 +23,13 @@ namespace frictiond::diagnosis_internal {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 std::string Num(double x, int digits = 3);
+/// Held-out gain [%]: 100 (before - after) / reference; 0 when the reference
+/// error is 0 (a perfect baseline, e.g. constant data, has nothing to gain:
+/// the division gave NaN, written as null where CONTRACT.md promises a
+/// number; outside attack run).
+inline double GainPct(double before, double after, double reference) {
+  return reference > 0 ? 100.0 * (before - after) / reference : 0.0;
+}
 bool EndsWith(const std::string& s, const std::string& suffix);
 /// Canonical term: Parse(Name()) so that numbers carry the name's precision
 /// and the stored term list reproduces the tested model exactly.

@@ -110,7 +110,7 @@ Selection Select(const StrokeData& data,
       t.terms = Names(e.terms);
       if (ev.ok) {
         t.cv_mae = ev.mae;
-        t.gain_pct = 100.0 * (ref->mae - ev.mae) / base_mae;
+        t.gain_pct = GainPct(ref->mae, ev.mae, base_mae);
         std::tie(t.t_stat, t.p_raw) = PairedStrokeTest(cv, *ref, ev);
       } else {
         t.cv_mae = kNaN;
@@ -680,8 +680,7 @@ DiagnosisResult RunDiagnosis(const StrokeData& data,
       const double p =
           ChainTest(outer, chain.stroke_sae[k], chain.stroke_sae[k + 1]).second;
       p_seq = std::max(p_seq, p);
-      const double gain =
-          100.0 * (chain.sae[k] - chain.sae[k + 1]) / chain.sae[0];
+      const double gain = GainPct(chain.sae[k], chain.sae[k + 1], chain.sae[0]);
       if (!(p_seq < options.alpha) || gain < options.min_gain_pct) break;
       next.push_back(kept[k]);
       p_holm.push_back(p_seq);
@@ -701,8 +700,7 @@ DiagnosisResult RunDiagnosis(const StrokeData& data,
     f.expansion = e.name;
     f.terms = Names(e.terms);
     f.p_value = p_holm[k];
-    f.cv_mae_gain_pct =
-        100.0 * (chain.sae[k] - chain.sae[k + 1]) / chain.sae[0];
+    f.cv_mae_gain_pct = GainPct(chain.sae[k], chain.sae[k + 1], chain.sae[0]);
     f.cv_mae = chain.sae[k + 1] / n_outer;
     f.log_likelihood_gain = (chain.ll[k + 1] - chain.ll[k]) / n_outer;
     f.selection_bias_pct = sel.chosen_gain[kept[k]] - f.cv_mae_gain_pct;
@@ -730,7 +728,7 @@ DiagnosisResult RunDiagnosis(const StrokeData& data,
                                    ext_mae,
                                    chain.ll.back() / n_outer,
                                    &beta_ext);
-  result.gain_pct = 100.0 * (base_mae - ext_mae) / base_mae;
+  result.gain_pct = GainPct(base_mae, ext_mae, base_mae);
   result.log_likelihood_gain = (chain.ll.back() - chain.ll[0]) / n_outer;
   // What the selection saw for the kept findings (the old, optimistic
   // figure) minus the outer gain.

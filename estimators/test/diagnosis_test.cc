@@ -129,6 +129,23 @@ TEST(DiagnosisTest, TooFewStrokesIsAStatus) {
   EXPECT_FALSE(r.why.empty());
 }
 
+// Constant mu (the baseline's held-out error is 0): every gain is 0, never
+// NaN (written as null where CONTRACT.md promises a number; outside attack
+// run).
+TEST(DiagnosisTest, ConstantDataGivesFiniteZeroGains) {
+  PlantedSpec spec;
+  spec.strokes = 12;
+  StrokeData d = GeneratePlantedStrokes(spec, 5);
+  for (std::size_t i = 0; i < d.size(); ++i) d.ft_n[i] = 0.5 * d.fn_n[i];
+  const DiagnosisResult r = Diagnose(d);
+  ASSERT_EQ(r.status, DiagnosisStatus::kOk) << r.why;
+  EXPECT_TRUE(std::isfinite(r.gain_pct));
+  EXPECT_EQ(r.gain_pct, 0.0);
+  EXPECT_TRUE(std::isfinite(r.selection_bias_pct));
+  EXPECT_TRUE(r.findings.empty()) << Describe(r);
+  for (const CandidateTest& t : r.tests) EXPECT_TRUE(std::isfinite(t.gain_pct));
+}
+
 // Rates of naming planted effects first, and false alarms on null data,
 // over many seeds: diagnosis_rates_test.cc (ctest LABEL slow).
 
