@@ -1,5 +1,7 @@
 #include "frictiond/client/client.h"
 
+#include <chrono>
+#include <cstdint>
 #include <cstdio>
 
 #include <httplib.h>
@@ -40,11 +42,58 @@ struct FrictionClient::Impl {
     // every upload after the first on a kept-alive connection (measured with
     // bench/upload: 43 ms per upload, 2.1 ms with TCP_NODELAY).
     http.set_tcp_nodelay(true);
+    max_reply_bytes = o.max_reply_bytes;
+    deadline_s = o.deadline_s;
     if (!o.robot.empty()) headers.emplace("X-Robot-Id", o.robot);
     if (!o.token.empty()) headers.emplace("Authorization", "Bearer " + o.token);
   }
   httplib::Client http;
   httplib::Headers headers;
+  std::size_t max_reply_bytes = 0;
+  double deadline_s = 0;
+
+  /// Sends one request; the reply body is abandoned beyond max_reply_bytes
+  /// or deadline_s (then *limit says which; the result is an error).
+  httplib::Result Send(const std::string& method,
+                       const std::string& path,
+                       const std::string* body,
+                       const std::string& content_type,
+                       std::string* limit) {
+    httplib::Request req;
+    req.method = method;
+    req.path = path;
+    req.headers = headers;
+    if (body) {
+      req.body = *body;
+      req.set_header("Content-Type", content_type);
+    }
+    const auto deadline =
+        std::chrono::steady_clock::now() +
+        std::chrono::milliseconds(static_cast<long>(deadline_s * 1000));
+    const std::size_t max = max_reply_bytes;
+    // The body is received here, not by httplib (its progress callback is
+    // not called for chunked replies): every piece is checked first.
+    std::string received;
+    req.content_receiver = [&](const char* data,
+                               std::size_t n,
+                               std::uint64_t /*offset*/,
+                               std::uint64_t total) {
+      if (total > max || received.size() + n > max) {
+        *limit = "reply larger than max_reply_bytes = " + std::to_string(max);
+        return false;
+      }
+      if (std::chrono::steady_clock::now() > deadline) {
+        *limit = "reply not complete within deadline_s = " +
+                 std::to_string(deadline_s) + " s";
+        return false;
+      }
+      received.append(data, n);
+      return true;
+    };
+    httplib::Result res = http.send(req);
+    if (res) res->body = std::move(received);
+    return res;
+  }
 };
 
 FrictionClient::FrictionClient(ClientOptions options)
@@ -57,8 +106,11 @@ namespace {
 
 json Check(const httplib::Result& res,
            const std::string& what,
-           const std::string& base_url) {
+           const std::string& base_url,
+           const std::string& limit = "") {
   if (!res) {
+    if (!limit.empty())
+      throw ClientError(0, what + ": " + base_url + ": " + limit);
     throw ClientError(0,
                       what + ": cannot reach frictiond at " + base_url + " (" +
                           httplib::to_string(res.error()) + ")");
@@ -66,7 +118,8 @@ json Check(const httplib::Result& res,
   json body = ParseJsonOrDiscarded(res->body);
   if (res->status >= 400) {
     std::string msg = what + ": HTTP " + std::to_string(res->status);
-    if (body.is_object() && body.contains("detail"))
+    if (body.is_object() && body.contains("detail") &&
+        body["detail"].is_string())
       msg += ": " + body["detail"].get<std::string>();
     throw ClientError(
         res->status, msg, body.is_discarded() ? json(nullptr) : body);
@@ -104,10 +157,11 @@ std::string MaterialPath(
 
 std::string FrictionClient::GetText(const std::string& path,
                                     std::string* content_type) {
-  const httplib::Result res = impl_->http.Get(path, impl_->headers);
+  std::string limit;
+  const httplib::Result res = impl_->Send("GET", path, nullptr, "", &limit);
   const std::string what = "GET " + path;
   if (!res || res->status >= 400) {
-    Check(res, what, options_.base_url);  // throws with the daemon's detail
+    Check(res, what, options_.base_url, limit);  // throws with the detail
     throw ClientError(res->status,
                       what + ": HTTP " + std::to_string(res->status));
   }
@@ -206,26 +260,22 @@ json FrictionClient::FetchSpanVariability(
 }
 
 json FrictionClient::GetJson(const std::string& path) {
-  return Check(
-      impl_->http.Get(path, impl_->headers), "GET " + path, options_.base_url);
+  std::string limit;
+  const httplib::Result res = impl_->Send("GET", path, nullptr, "", &limit);
+  return Check(res, "GET " + path, options_.base_url, limit);
 }
 
 json FrictionClient::SendJson(const std::string& method,
                               const std::string& path,
                               const std::string& body,
                               const std::string& content_type) {
-  httplib::Result res{nullptr, httplib::Error::Unknown};
-  if (method == "POST") {
-    res = impl_->http.Post(path, impl_->headers, body, content_type);
-  } else if (method == "PUT") {
-    res = impl_->http.Put(path, impl_->headers, body, content_type);
-  } else if (method == "DELETE") {
-    res = impl_->http.Delete(path, impl_->headers, body, content_type);
-  } else {
+  if (method != "POST" && method != "PUT" && method != "DELETE")
     throw std::invalid_argument("method: " + method +
                                 " (must be POST, PUT or DELETE)");
-  }
-  return Check(res, method + " " + path, options_.base_url);
+  std::string limit;
+  const httplib::Result res =
+      impl_->Send(method, path, &body, content_type, &limit);
+  return Check(res, method + " " + path, options_.base_url, limit);
 }
 
 std::vector<MaterialInfo> FrictionClient::ListMaterials() {

@@ -19,6 +19,7 @@
 /// models are cached on disk and served, marked stale, when no daemon
 /// answers (docs/offline.md).
 
+#include <cstddef>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -55,6 +56,13 @@ struct ClientOptions {
   std::string fingertip = "default";  ///< default fingertip of requests
   std::string robot;                  ///< sent as X-Robot-Id (may be empty)
   double timeout_s = 5.0;             ///< connect/read timeout
+  /// A reply body larger than this is abandoned (ClientError, status 0):
+  /// whatever answers at base_url cannot make the client run out of memory.
+  std::size_t max_reply_bytes = std::size_t{256} << 20;
+  /// A reply body still arriving this long after the request was sent is
+  /// abandoned [s] (a server sending one byte per second kept the CLI
+  /// waiting for ever; timeout_s bounds each read only).
+  double deadline_s = 120.0;
   /// API token secret, sent as "Authorization: Bearer <token>" when not
   /// empty (docs/auth.md).
   std::string token;
