@@ -1,6 +1,8 @@
 // Model diagnosis over HTTP: run `diagnose` on a material's stored strokes
 // and, when asked, store the extended model as a new version that is served
 // like any other (issue "model diagnosis", item 4).
+#include <atomic>
+
 #include "frictiond/estimators/diagnosis.h"
 #include "frictiond/proto/diagnosis_json.h"
 #include "frictiond/proto/lugre_json.h"
@@ -9,6 +11,33 @@
 namespace frictiond {
 
 using nlohmann::json;
+
+namespace {
+
+// Bounds of one diagnosis over HTTP. An outside attack run stored 24
+// uploads of 7.9 MB in one material and ran 3 diagnoses at once: 56 s each
+// and the daemon at 4 GB. The search's memory and time grow with the
+// samples; the CLI (`friction diagnose`) has no such bound.
+constexpr std::size_t kMaxDiagnosisSamples = 1'000'000;
+std::atomic<int> g_diagnoses_running{0};
+
+// At most one diagnosis at a time; others get 503 with a retry hint.
+class DiagnosisSlot {
+ public:
+  DiagnosisSlot() {
+    int expected = 0;
+    if (!g_diagnoses_running.compare_exchange_strong(expected, 1))
+      throw RequestError(StatusCode::kUnavailable,
+                         "id",
+                         "another diagnosis is running (one at a time); "
+                         "retry when it is done");
+  }
+  ~DiagnosisSlot() { g_diagnoses_running = 0; }
+  DiagnosisSlot(const DiagnosisSlot&) = delete;
+  DiagnosisSlot& operator=(const DiagnosisSlot&) = delete;
+};
+
+}  // namespace
 
 void RegisterDiagnosisRoutes(HttpServer& http, FrictionLibrary& lib) {
   http.Route(
@@ -41,8 +70,18 @@ void RegisterDiagnosisRoutes(HttpServer& http, FrictionLibrary& lib) {
                                "seed must be a non-negative integer");
           options.seed = static_cast<std::uint64_t>(s);
         }
+        const DiagnosisSlot slot;
         const StrokeData data =
             lib.LoadStrokes(id, fingertip, options.labelling);
+        if (data.size() > kMaxDiagnosisSamples)
+          throw RequestError(
+              StatusCode::kResourceExhausted,
+              "strokes",
+              "strokes: " + std::to_string(data.size()) +
+                  " samples stored (at most " +
+                  std::to_string(kMaxDiagnosisSamples) +
+                  " for one diagnosis over HTTP; export the strokes and run "
+                  "'friction diagnose' on a part of them)");
         const DiagnosisResult result = Diagnose(data, options);
         json out = {
             {"material", id},
