@@ -18,7 +18,9 @@ namespace {
 // uploads of 7.9 MB in one material and ran 3 diagnoses at once: 56 s each
 // and the daemon at 4 GB. The search's memory and time grow with the
 // samples; the CLI (`friction diagnose`) has no such bound.
-constexpr std::size_t kMaxDiagnosisSamples = 1'000'000;
+// Bounded in cells (samples x columns): 360,000 samples of 64 columns took
+// the daemon to 1.7 GB.
+constexpr std::size_t kMaxDiagnosisCells = 8'000'000;
 std::atomic<int> g_diagnoses_running{0};
 
 // At most one diagnosis at a time; others get 503 with a retry hint.
@@ -73,15 +75,17 @@ void RegisterDiagnosisRoutes(HttpServer& http, FrictionLibrary& lib) {
         const DiagnosisSlot slot;
         const StrokeData data =
             lib.LoadStrokes(id, fingertip, options.labelling);
-        if (data.size() > kMaxDiagnosisSamples)
+        const std::size_t columns = 4 + data.covariates.size();
+        if (data.size() * columns > kMaxDiagnosisCells)
           throw RequestError(
               StatusCode::kResourceExhausted,
               "strokes",
-              "strokes: " + std::to_string(data.size()) +
-                  " samples stored (at most " +
-                  std::to_string(kMaxDiagnosisSamples) +
-                  " for one diagnosis over HTTP; export the strokes and run "
-                  "'friction diagnose' on a part of them)");
+              "strokes: " + std::to_string(data.size()) + " samples of " +
+                  std::to_string(columns) + " columns stored (at most " +
+                  std::to_string(kMaxDiagnosisCells) +
+                  " samples x columns for one diagnosis over HTTP; export "
+                  "the strokes and run 'friction diagnose' on a part of "
+                  "them)");
         const DiagnosisResult result = Diagnose(data, options);
         json out = {
             {"material", id},
