@@ -4,14 +4,14 @@
 // each end in a ClientError, with memory and time bounded. An outside
 // attack run had the CLI grow to 16.6 GB on an endless chunked reply, hang
 // for minutes on a 1 byte/s reply, and crash on a 200,000-deep array.
-#include "frictiond/client/client.h"
-
 #include <chrono>
 #include <string>
 #include <thread>
 
 #include <gtest/gtest.h>
 #include <httplib.h>
+
+#include "frictiond/client/client.h"
 
 namespace frictiond {
 namespace {
@@ -30,21 +30,20 @@ class HostileServer {
                      return sink.write(chunk.data(), chunk.size());
                    });
              });
-    svr_.Get("/v1/materials/drip/model",
-             [](const httplib::Request&, httplib::Response& res) {
-               res.set_chunked_content_provider(
-                   "application/json",
-                   [](std::size_t, httplib::DataSink& sink) {
-                     std::this_thread::sleep_for(
-                         std::chrono::milliseconds(100));
-                     return sink.write(" ", 1);
-                   });
-             });
+    svr_.Get(
+        "/v1/materials/drip/model",
+        [](const httplib::Request&, httplib::Response& res) {
+          res.set_chunked_content_provider(
+              "application/json", [](std::size_t, httplib::DataSink& sink) {
+                std::this_thread::sleep_for(std::chrono::milliseconds(100));
+                return sink.write(" ", 1);
+              });
+        });
     svr_.Get("/v1/materials/deep/model",
              [](const httplib::Request&, httplib::Response& res) {
-               res.set_content(std::string(200000, '[') +
-                                   std::string(200000, ']'),
-                               "application/json");
+               res.set_content(
+                   std::string(200000, '[') + std::string(200000, ']'),
+                   "application/json");
              });
     port_ = svr_.bind_to_any_port("127.0.0.1");
     thread_ = std::thread([this] { svr_.listen_after_bind(); });
