@@ -9,9 +9,12 @@
 #include <thread>
 
 #include <gtest/gtest.h>
-#include <httplib.h>
 
 #include "frictiond/client/client.h"
+
+// After every header that includes Eigen: httplib.h includes <resolv.h>,
+// whose `_res` macro breaks Eigen's product kernels.
+#include <httplib.h>
 
 namespace frictiond {
 namespace {
