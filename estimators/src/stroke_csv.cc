@@ -130,6 +130,15 @@ StrokeData ParseStrokeCsv(std::string_view text,
                   " is not a valid column name "
                   "([A-Za-z_][A-Za-z0-9_]*, at most 64 characters)");
         }
+        if (name == "intercept") {
+          // The model's constant term has this name in every coefficient
+          // map and term list; a covariate of that name could only enter
+          // as `fn_n*intercept` (outside attack run).
+          throw StrokeCsvError(line_no,
+                               "header",
+                               "header: column 'intercept' is reserved for "
+                               "the model's constant term (rename it)");
+        }
         for (const auto& prev : columns) {
           if (prev.name == name) {
             throw StrokeCsvError(

@@ -160,6 +160,10 @@ TEST(StrokeCsv, RejectsBadInputNamingLineAndField) {
   expect_error("t_s,fn_n,ft_n,v_mm_s,t_s\n", 1, "t_s", "twice");
   expect_error(
       "t_s,fn_n,ft_n,v_mm_s,x;drop\n", 1, "header", "not a valid column name");
+  expect_error("t_s,fn_n,ft_n,v_mm_s,intercept\n0,1,1,0,2\n",
+               1,
+               "header",
+               "'intercept' is reserved");
   // A NUL or other control byte in a quoted cell is shown as '?': a NUL
   // ended the message at what() and lost the reason.
   expect_error(std::string("t_s,fn_n,ft_n,v_mm_s\n0,1,0.5\0"
