@@ -118,8 +118,16 @@ class RawConn {
     }
     if (in.rfind("HTTP/1.1 ", 0) != 0) return 0;
     const std::size_t head_end = in.find("\r\n\r\n");
-    if (body)
+    if (body) {
       *body = head_end == std::string::npos ? "" : in.substr(head_end + 4);
+      // Only this answer's body: a next answer may follow in the same read.
+      const std::size_t cl = in.find("Content-Length: ");
+      if (head_end != std::string::npos && cl != std::string::npos &&
+          cl < head_end)
+        body->resize(
+            std::min(body->size(),
+                     static_cast<std::size_t>(std::stoul(in.substr(cl + 16)))));
+    }
     return std::stoi(in.substr(9, 3));
   }
 
