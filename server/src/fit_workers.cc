@@ -32,7 +32,7 @@ void FitWorkers::PostShare(std::function<void()> task) {
   Post([this, task = std::move(task)] {
     {
       std::lock_guard<std::mutex> lock(load_mu_);
-      if (2 * in_flight_ > static_cast<int>(threads_.size())) return;
+      if (!SplitFitsLocked()) return;
     }
     task();
   });
@@ -41,7 +41,11 @@ void FitWorkers::PostShare(std::function<void()> task) {
 FitWorkers::Refit FitWorkers::Begin() {
   std::lock_guard<std::mutex> lock(load_mu_);
   ++in_flight_;
-  return Refit(this, 2 * in_flight_ <= static_cast<int>(threads_.size()));
+  return Refit(this, SplitFitsLocked());
+}
+
+bool FitWorkers::SplitFitsLocked() const {
+  return 2 * in_flight_ <= static_cast<int>(threads_.size());
 }
 
 FitWorkers::Refit::Refit(Refit&& other) noexcept

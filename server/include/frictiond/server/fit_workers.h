@@ -81,6 +81,9 @@ class FitWorkers {
   std::deque<std::function<void()>> queue_;
   bool stopping_ = false;
   std::vector<std::thread> threads_;
+  /// The one split rule: every refit in flight can have two hardware
+  /// threads. Call with load_mu_ held.
+  bool SplitFitsLocked() const;
   std::mutex load_mu_;
   int in_flight_ = 0;  // refits between Begin and ~Refit
 };
