@@ -27,49 +27,37 @@ void PrepareUpload(StrokeData* data, const SlipLabelOptions& labelling) {
   AddDerivedFeatures(data, labelling);
 }
 
-std::vector<std::size_t> SelectFitUploads(
-    const std::vector<std::size_t>& samples, std::size_t cap) {
+FitChoice SelectFitUploads(const std::vector<std::size_t>& samples,
+                           std::size_t cap) {
   const std::size_t n = samples.size();
-  std::size_t total = 0;
-  for (std::size_t s : samples) total += s;
-  std::vector<std::size_t> out;
-  if (total <= cap) {
-    out.resize(n);
-    for (std::size_t i = 0; i < n; ++i) out[i] = i;
-    return out;
-  }
-  // K strata of equal upload count; the middle upload of each. Start from
-  // the count the mean upload size allows and step down until it fits.
-  auto pick = [&](std::size_t k, std::size_t* sum) {
-    std::vector<std::size_t> idx;
-    idx.reserve(k);
-    *sum = 0;
-    for (std::size_t j = 0; j < k; ++j) {
-      const std::size_t i = ((2 * j + 1) * n) / (2 * k);
-      idx.push_back(i);
-      *sum += samples[i];
-    }
-    return idx;
-  };
-  const std::size_t mean = std::max<std::size_t>(total / n, 1);
-  std::size_t k = std::clamp<std::size_t>(cap / mean, 1, n);
-  for (; k > 1; --k) {
+  FitChoice out;
+  // Nested strata: the smallest power-of-two stride whose uploads (the
+  // multiples of it, each of at most `cap` samples) fit; stride 1 takes
+  // every such upload. For a fixed stride the sum only grows as uploads are
+  // appended, so the stride never shrinks and an upload off the stride is
+  // never chosen again (docs/ingest.md).
+  for (std::size_t stride = 1;; stride *= 2) {
     std::size_t sum = 0;
-    out = pick(k, &sum);
-    if (sum <= cap) break;
+    for (std::size_t i = 0; i < n; i += stride)
+      if (samples[i] <= cap) sum += samples[i];
+    if (sum > cap) continue;  // ends: at stride >= n only upload 0 is left
+    for (std::size_t i = 0; i < n; i += stride)
+      if (samples[i] <= cap) out.indices.push_back(i);
+    out.stride = stride;
+    if (!out.indices.empty() || n == 0) return out;
+    break;  // every upload of the stride is above the cap
   }
-  if (k <= 1) {
-    // One upload: the newest one that fits, else the newest (whole, even
-    // above the cap: a refit is never left with the new upload alone).
-    std::size_t best = n - 1;
-    for (std::size_t i = n; i-- > 0;) {
-      if (samples[i] <= cap) {
-        best = i;
-        break;
-      }
+  // No stratum fits: the newest upload that fits, else the newest (whole,
+  // even above the cap: a refit is never left with the new upload alone).
+  std::size_t best = n - 1;
+  for (std::size_t i = n; i-- > 0;) {
+    if (samples[i] <= cap) {
+      best = i;
+      break;
     }
-    out = {best};
   }
+  out.indices = {best};
+  out.stride = 0;
   return out;
 }
 
@@ -91,6 +79,9 @@ struct Ingestor::Pair {
   std::map<std::int64_t, StrokeData> uploads;  // prepared, by stroke id
   std::size_t samples = 0;                     // of `uploads` (cached)
   std::int64_t known_through = 0;  // every stroke id of the pair <= it is known
+  // The last refit's FitChoice::stride: an upload at an index that is not a
+  // multiple of it (> 1) is never chosen again, so its parsed data goes.
+  std::size_t stride = 1;
 };
 
 Ingestor::PairLock::PairLock(std::shared_ptr<Pair> pair,
@@ -127,6 +118,7 @@ void Ingestor::Shed(Pair& pair) {
 
 void Ingestor::Drop(Pair& pair) {
   Shed(pair);
+  pair.stride = 1;
   pair.ids.clear();
   pair.sizes.clear();
   pair.samples_stored = 0;
@@ -187,6 +179,7 @@ void Ingestor::CatchUp(Pair& pair,
     pair.known_through = std::max(pair.known_through, r.id);
     if (std::binary_search(pair.ids.begin(), pair.ids.end(), r.id)) continue;
     auto full = store_.GetStroke(r.id);
+    ++store_reads_;
     if (!full) continue;
     Cache(pair, r.id, full->csv);
   }
@@ -208,13 +201,13 @@ FitData Ingestor::AssembleFitData(PairLock& lock,
   const std::vector<std::size_t> sizes = pair.sizes;
   out.uploads_stored = static_cast<int>(ids.size());
   out.samples_stored = pair.samples_stored;
-  const std::vector<std::size_t> chosen =
-      SelectFitUploads(sizes, options_.fit_sample_cap);
+  const FitChoice choice = SelectFitUploads(sizes, options_.fit_sample_cap);
   // A pair the cache shed keeps its index: read back only the chosen
   // uploads it no longer holds (a bounded refit reads a bounded number).
-  for (std::size_t i : chosen) {
+  for (std::size_t i : choice.indices) {
     if (pair.uploads.count(ids[i])) continue;
     auto full = store_.GetStroke(ids[i]);
+    ++store_reads_;
     if (!full || !Cache(pair, ids[i], full->csv)) {
       // Gone or unreadable now: it leaves the index.
       const auto at =
@@ -224,11 +217,10 @@ FitData Ingestor::AssembleFitData(PairLock& lock,
       pair.ids.erase(at);
     }
   }
-  EvictBeyondCap(&pair);
   std::size_t reserve = upload.size();
-  for (std::size_t i : chosen) reserve += sizes[i];
+  for (std::size_t i : choice.indices) reserve += sizes[i];
   out.strokes.Reserve(reserve);
-  for (std::size_t i : chosen) {
+  for (std::size_t i : choice.indices) {
     auto it = pair.uploads.find(ids[i]);
     if (it == pair.uploads.end()) continue;
     out.strokes.Append(it->second);
@@ -240,6 +232,24 @@ FitData Ingestor::AssembleFitData(PairLock& lock,
   } else {
     out.strokes.Append(upload);
   }
+  // Uploads off the stride are never chosen again (FitChoice): drop their
+  // parsed data, so a pair keeps about `fit_sample_cap` samples.
+  pair.stride = choice.stride;
+  if (pair.stride > 1) {
+    for (auto it = pair.uploads.begin(); it != pair.uploads.end();) {
+      const auto at =
+          std::lower_bound(pair.ids.begin(), pair.ids.end(), it->first);
+      const auto index = static_cast<std::size_t>(at - pair.ids.begin());
+      if (index % pair.stride == 0) {
+        ++it;
+        continue;
+      }
+      pair.samples -= it->second.size();
+      cached_samples_ -= it->second.size();
+      it = pair.uploads.erase(it);
+    }
+  }
+  EvictBeyondCap(&pair);
   return out;
 }
 

@@ -57,26 +57,49 @@ void ExpectSameFit(const StochasticFrictionModel& a,
 
 TEST(SelectFitUploadsTest, TakesAllBelowTheCap) {
   const std::vector<std::size_t> sizes = {100, 200, 300};
-  EXPECT_EQ(SelectFitUploads(sizes, 600), (std::vector<std::size_t>{0, 1, 2}));
-  EXPECT_TRUE(SelectFitUploads({}, 0).empty());
+  const FitChoice all = SelectFitUploads(sizes, 600);
+  EXPECT_EQ(all.indices, (std::vector<std::size_t>{0, 1, 2}));
+  EXPECT_EQ(all.stride, 1u);
+  EXPECT_TRUE(SelectFitUploads({}, 0).indices.empty());
+  // An upload above the cap alone is left out; the rest still fit.
+  EXPECT_EQ(SelectFitUploads({5000, 100, 100, 9000}, 1000).indices,
+            (std::vector<std::size_t>{1, 2}));
 }
 
-TEST(SelectFitUploadsTest, AboveTheCapOneUploadPerStratumWithinTheCap) {
+TEST(SelectFitUploadsTest, AboveTheCapNestedStridesWithinTheCap) {
   const std::vector<std::size_t> sizes(1000, 250);
-  const std::vector<std::size_t> chosen = SelectFitUploads(sizes, 6000);
-  ASSERT_EQ(chosen.size(), 24u);  // 24 * 250 = 6000
-  std::size_t sum = 0;
-  for (std::size_t i = 0; i < chosen.size(); ++i) {
-    sum += sizes[chosen[i]];
-    if (i > 0) {
-      EXPECT_GT(chosen[i], chosen[i - 1]);
+  const FitChoice c = SelectFitUploads(sizes, 6000);
+  // Stride 32 would take 32 uploads (8,000 samples); 64 takes 16 (4,000).
+  EXPECT_EQ(c.stride, 64u);
+  ASSERT_EQ(c.indices.size(), 16u);
+  for (std::size_t k = 0; k < c.indices.size(); ++k)
+    EXPECT_EQ(c.indices[k], 64 * k);  // old and recent uploads represented
+  EXPECT_EQ(SelectFitUploads(sizes, 6000).indices, c.indices);  // deterministic
+}
+
+TEST(SelectFitUploadsTest, ConsecutiveChoicesShareTheirUploads) {
+  // What lets the cache drop uploads off the stride: appending uploads
+  // never brings back one that a choice left out, and the stride never
+  // shrinks. Uneven sizes, including some above the cap.
+  for (std::size_t cap : {1000u, 5000u, 20000u}) {
+    std::vector<std::size_t> sizes;
+    FitChoice previous;
+    for (int n = 1; n <= 600; ++n) {
+      sizes.push_back(n % 97 == 0 ? 2 * cap : 50 + (n * 7919) % 900);
+      const FitChoice c = SelectFitUploads(sizes, cap);
+      ASSERT_GE(c.stride, 1u) << n;  // no fallback: upload 0 fits
+      EXPECT_GE(c.stride, previous.stride) << cap << " " << n;
+      for (std::size_t i : c.indices) {
+        EXPECT_EQ(i % c.stride, 0u);
+        if (i + 1 < sizes.size()) {  // an older upload: chosen before
+          EXPECT_TRUE(std::binary_search(
+              previous.indices.begin(), previous.indices.end(), i))
+              << cap << " " << n << " " << i;
+        }
+      }
+      previous = c;
     }
-    // Stratum i is [i*1000/24, (i+1)*1000/24): the choice lies inside it.
-    EXPECT_GE(chosen[i] * 24, i * 1000) << i;
-    EXPECT_LT(chosen[i] * 24, (i + 1) * 1000) << i;
   }
-  EXPECT_LE(sum, 6000u);
-  EXPECT_EQ(SelectFitUploads(sizes, 6000), chosen);  // deterministic
 }
 
 TEST(SelectFitUploadsTest, UnevenSizesStayWithinTheCap) {
@@ -84,7 +107,7 @@ TEST(SelectFitUploadsTest, UnevenSizesStayWithinTheCap) {
   for (int i = 0; i < 300; ++i) sizes.push_back(50 + (i * 7919) % 900);
   for (std::size_t cap : {1000u, 5000u, 20000u}) {
     std::size_t sum = 0;
-    const auto chosen = SelectFitUploads(sizes, cap);
+    const auto chosen = SelectFitUploads(sizes, cap).indices;
     ASSERT_FALSE(chosen.empty());
     for (std::size_t i : chosen) sum += sizes[i];
     EXPECT_LE(sum, cap) << cap;
@@ -93,9 +116,10 @@ TEST(SelectFitUploadsTest, UnevenSizesStayWithinTheCap) {
 }
 
 TEST(SelectFitUploadsTest, NoneFitsTakesTheNewestWhole) {
-  EXPECT_EQ(SelectFitUploads({5000, 9000, 7000}, 1000),
+  EXPECT_EQ(SelectFitUploads({5000, 9000, 7000}, 1000).indices,
             (std::vector<std::size_t>{2}));
-  EXPECT_EQ(SelectFitUploads({500, 9000, 7000}, 1000),
+  EXPECT_EQ(SelectFitUploads({5000, 9000, 7000}, 1000).stride, 0u);
+  EXPECT_EQ(SelectFitUploads({500, 9000, 7000}, 1000).indices,
             (std::vector<std::size_t>{0}));
 }
 
@@ -226,7 +250,8 @@ TEST_F(IngestorTest, AboveTheCapTheRefitIsBoundedAndSaysSo) {
   // The last refit got the stratified choice of the 7 older uploads + it.
   sizes.pop_back();
   std::size_t expected = Samples(SimulatedCsv(57));
-  for (std::size_t i : SelectFitUploads(sizes, 1500)) expected += sizes[i];
+  for (std::size_t i : SelectFitUploads(sizes, 1500).indices)
+    expected += sizes[i];
   EXPECT_EQ(r.model->set.stochastic->samples_total, static_cast<int>(expected));
   EXPECT_LE(expected, 1500u + Samples(SimulatedCsv(57)));
   EXPECT_NE(r.fit_note.find("bounded refit:"), std::string::npos) << r.fit_note;
@@ -380,6 +405,39 @@ TEST_F(IngestorTest, AShedPairReadsBackOnlyTheChosenUploads) {
   ASSERT_EQ(beta_a.size(), beta_b.size());
   for (Eigen::Index i = 0; i < beta_a.size(); ++i)
     EXPECT_EQ(beta_a[i], beta_b[i]) << i;
+}
+
+TEST_F(IngestorTest, TwoBusyPairsAboveTheCacheCapReadNothingBack) {
+  // Two pairs uploading in turn, their histories (2 x 40 x ~300 samples)
+  // above the cache cap, their refits' choices (<= 3,000 + 300 each) below
+  // it. Each pair keeps only the uploads its refits can still choose, so
+  // no upload is read back from the store (before, each upload shed the
+  // other pair and its next refit read its choice back: ~10 reads per
+  // upload). The models equal those of a cache that never evicts.
+  LibraryOptions small;
+  small.ingest.fit_sample_cap = 3000;
+  small.ingest.cache_sample_cap = 10'000;
+  LibraryOptions big = small;
+  big.ingest.cache_sample_cap = 100'000'000;
+  FrictionLibrary lib(OpenStore(":memory:"), small);
+  FrictionLibrary ref(OpenStore(":memory:"), big);
+  for (int k = 0; k < 40; ++k) {
+    for (const char* m : {"felt", "cork"}) {
+      const std::string csv = SimulatedCsv(300 + 2 * k + (m[0] == 'c'), 1);
+      const IngestResult a = lib.IngestStrokes(m, csv, {});
+      const IngestResult b = ref.IngestStrokes(m, csv, {});
+      ASSERT_EQ(a.model->set.stochastic->samples_total,
+                b.model->set.stochastic->samples_total)
+          << m << " " << k;
+      EXPECT_EQ(a.model->set.stochastic->mu.beta,
+                b.model->set.stochastic->mu.beta)
+          << m << " " << k;
+    }
+    EXPECT_LE(lib.ingestor().cached_samples(), small.ingest.cache_sample_cap);
+  }
+  EXPECT_EQ(lib.ingestor().store_reads(), 0u);
+  EXPECT_LT(ref.ingestor().cached_samples(), 2 * (3000u + 2 * 400u))
+      << "each pair keeps about its refit's choice";
 }
 
 }  // namespace

@@ -23,10 +23,11 @@
 /// family fitters (LuGre recognition, eq. (2)) need samples, not sufficient
 /// statistics, so the refit gets every older upload while their samples stay
 /// within `fit_sample_cap`, and above the cap a deterministic, stratified
-/// choice of whole older uploads (SelectFitUploads): the history is cut into
-/// equal strata in upload order and the middle upload of each stratum is
-/// taken, so old and new data stay represented and a stroke's time series
-/// stays intact. The new upload is always included whole, last.
+/// choice of whole older uploads (SelectFitUploads): the uploads at
+/// multiples of a power-of-two stride in upload order, so old and new data
+/// stay represented, a stroke's time series stays intact, and consecutive
+/// refits share their older uploads (the cache keeps only those a refit can
+/// still choose). The new upload is always included whole, last.
 
 #include <atomic>
 #include <cstddef>
@@ -51,9 +52,10 @@ struct IngestorOptions {
   std::size_t fit_sample_cap = 4'000;
   /// Parsed samples kept over all pairs; beyond it the least recently used
   /// pairs' caches are dropped (reloaded from the store on their next
-  /// upload). The pair being ingested is always kept, so one pair whose
-  /// history is above the cap stays cached while it is the one in use.
-  /// About 80 bytes per sample without covariates (~40 MB at the default).
+  /// upload). A pair keeps only the uploads its refits can still choose
+  /// (FitChoice::stride), about `fit_sample_cap` samples once its history
+  /// is above that, so this bounds how many pairs stay warm. About 80 bytes
+  /// per sample without covariates (~40 MB at the default).
   std::size_t cache_sample_cap = 500'000;
   /// Largest upload a stored stroke may be (parser limit).
   std::size_t max_samples_per_upload = 5'000'000;
@@ -70,14 +72,30 @@ struct FitData {
   std::size_t samples_used = 0;    ///< of which the refit got
 };
 
-/// Indices (ascending) of the uploads, of the given sample counts in upload
-/// order, that a refit gets: all when their sum is at most `cap`, else the
-/// middle upload of each of K equal strata, K the largest count whose chosen
-/// uploads fit the cap; when not even one upload fits, the newest one that
-/// does, else the newest one (so the refit may exceed the cap by one older
+/// The older uploads a refit gets (SelectFitUploads).
+struct FitChoice {
+  /// Indices into the pair's uploads in upload order, ascending.
+  std::vector<std::size_t> indices;
+  /// Every chosen index is a multiple of it, and so is every index a later
+  /// choice over the same uploads plus newer ones makes: an upload whose
+  /// index is not a multiple is never chosen again (its parsed data need
+  /// not be kept), unless a later choice falls back. 1 when every upload is
+  /// chosen; 0 for the fallback (no promise).
+  std::size_t stride = 1;
+};
+
+/// The uploads, of the given sample counts in upload order, that a refit
+/// gets: nested strata, the uploads at multiples of the smallest
+/// power-of-two stride whose uploads sum to at most `cap` (an upload of
+/// more than `cap` samples is left out); stride 1 when every upload fits,
+/// else between about half the cap and the cap is used. The stride never
+/// shrinks as uploads are appended, so consecutive refits share their older
+/// uploads and an upload dropped from the choice is never chosen again.
+/// When every upload of that stride is above the cap, the newest upload
+/// that fits, else the newest (so the refit may exceed the cap by one older
 /// upload, itself bounded by the upload limit). Deterministic.
-std::vector<std::size_t> SelectFitUploads(
-    const std::vector<std::size_t>& samples, std::size_t cap);
+FitChoice SelectFitUploads(const std::vector<std::size_t>& samples,
+                           std::size_t cap);
 
 /// Labels a parsed upload and adds CONTRACT.md's derived features; labels,
 /// strokes and derived features are per upload (time gaps, dwell and
@@ -145,6 +163,12 @@ class Ingestor {
   /// Parsed samples cached over all pairs (for tests and metrics).
   std::size_t cached_samples() const { return cached_samples_.load(); }
 
+  /// Uploads read back from the store one at a time so far: strokes another
+  /// writer stored, and chosen uploads whose parsed data the cache no
+  /// longer held (a pair's one-query load is not counted). For tests and
+  /// metrics.
+  std::size_t store_reads() const { return store_reads_.load(); }
+
  private:
   void Load(Pair& pair,
             const std::string& material,
@@ -170,6 +194,7 @@ class Ingestor {
   std::unordered_map<std::string, std::shared_ptr<Pair>> pairs_;
   std::uint64_t clock_ = 0;
   std::atomic<std::size_t> cached_samples_{0};
+  std::atomic<std::size_t> store_reads_{0};
 };
 
 }  // namespace frictiond

@@ -122,6 +122,9 @@ class FrictionLibrary {
 
   Store& store() { return *store_; }
   const LibraryOptions& options() const { return options_; }
+  /// The stroke cache of IngestStrokes (its counters, for tests and
+  /// metrics).
+  const Ingestor& ingestor() const { return *ingestor_; }
 
   // --- materials ----------------------------------------------------------
   std::vector<Material> ListMaterials();
