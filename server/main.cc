@@ -58,10 +58,11 @@ int main(int argc, char** argv) {
   CLI::Option* port_opt = app.add_option("--port", port, "HTTP port [8080]");
   CLI::Option* bind_opt =
       app.add_option("--bind", bind, "HTTP bind address [127.0.0.1]");
-  app.add_option("--data",
-                 data,
-                 "bundled datasets loaded into an empty database, or 'none' "
-                 "[project data/]");
+  CLI::Option* data_opt = app.add_option(
+      "--data",
+      data,
+      "bundled datasets loaded into an empty database, or 'none' "
+      "[project data/]");
   CLI::Option* lcm_opt =
       app.add_option("--lcm", lcm, "LCM provider URL, or 'none' [none]");
   CLI::Option* max_body_opt = app.add_option(
@@ -72,10 +73,11 @@ int main(int argc, char** argv) {
   bool lcm_allow_unsigned = false;
   bool lcm_send_unsigned = false;
   double lcm_max_skew_s = -1;
-  app.add_option("--lcm-keys",
-                 lcm_keys,
-                 "JSON file {\"robot-id\": \"hex key\"} of the keys of "
-                 "signed LCM writes");
+  CLI::Option* lcm_keys_opt =
+      app.add_option("--lcm-keys",
+                     lcm_keys,
+                     "JSON file {\"robot-id\": \"hex key\"} of the keys of "
+                     "signed LCM writes");
   app.add_flag("--lcm-allow-unsigned",
                lcm_allow_unsigned,
                "accept unsigned stroke_chunk_v1 on LCM (off: dropped)");
@@ -134,14 +136,20 @@ int main(int argc, char** argv) {
     if (!config_file.empty()) config.LoadFile(config_file);
     if (db_opt->count()) config.db = db;
     if (bind_opt->count()) config.bind = bind;
-    if (!data.empty()) config.data_dir = data;
+    // An empty path given was read as "not given" (the project's data/,
+    // or no keys): refused, like the other flags.
+    if (data_opt->count() && data.empty())
+      throw std::invalid_argument("--data: empty (give a directory or none)");
+    if (lcm_keys_opt->count() && lcm_keys.empty())
+      throw std::invalid_argument("--lcm-keys: empty (give a JSON file)");
+    if (data_opt->count()) config.data_dir = data;
     if (lcm_opt->count()) config.lcm_url = lcm;
     // A flag given is applied as given (a negative value is refused by
     // DaemonConfig::Validate, naming the flag; it was silently ignored).
     if (port_opt->count()) config.port = port;
     if (max_body_opt->count()) config.max_body_mb = max_body_mb;
     if (threads_opt->count()) config.threads = threads;
-    if (!lcm_keys.empty()) config.lcm_keys_file = lcm_keys;
+    if (lcm_keys_opt->count()) config.lcm_keys_file = lcm_keys;
     if (lcm_allow_unsigned) config.lcm_allow_unsigned = true;
     if (lcm_send_unsigned) config.lcm_send_unsigned = true;
     if (skew_opt->count()) config.lcm_max_skew_s = lcm_max_skew_s;
