@@ -20,6 +20,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
@@ -401,12 +402,31 @@ int Main(int argc, char** argv) {
     return start +
            std::chrono::milliseconds(static_cast<long>(seconds * f * 1000));
   };
+  // The daemon's heap in use and kept free (GET /metrics, mallinfo2) at the
+  // same moments: RSS growing while the heap in use does not is the
+  // allocator keeping freed memory, not a leak.
+  auto heap_kib = [&](const char* gauge) -> double {
+    auto res = daemon.MakeClient(10.0)->Get("/metrics");
+    if (!res) return std::nan("");
+    const std::string key = std::string("\n") + gauge + " ";
+    const auto at = res->body.find(key);
+    if (at == std::string::npos) return std::nan("");
+    return std::atof(res->body.c_str() + at + key.size()) / 1024.0;
+  };
+  std::vector<std::pair<double, double>> heap;  // in use, free [KiB]
+  auto sample_heap = [&] {
+    heap.emplace_back(heap_kib("frictiond_heap_in_use_bytes"),
+                      heap_kib("frictiond_heap_free_bytes"));
+  };
   std::this_thread::sleep_until(at_fraction(0.25));
   const std::size_t rss_start = RssKiB(daemon.pid(), "VmRSS:");
+  sample_heap();
   std::this_thread::sleep_until(at_fraction(0.5));
   const std::size_t rss_half = RssKiB(daemon.pid(), "VmRSS:");
+  sample_heap();
   std::this_thread::sleep_until(at_fraction(0.75));
   const std::size_t rss_three_quarters = RssKiB(daemon.pid(), "VmRSS:");
+  sample_heap();
   std::this_thread::sleep_until(deadline);
   stop = true;
   for (std::thread& t : pool) t.join();
@@ -424,6 +444,7 @@ int Main(int argc, char** argv) {
       lost += verify(*c, material, ids);
   }
   const std::size_t rss_end = RssKiB(daemon.pid(), "VmRSS:");
+  sample_heap();
   const std::size_t hwm = RssKiB(daemon.pid(), "VmHWM:");
   const bool alive = daemon.MakeClient()->Get("/healthz") != nullptr;
   const testing::ExitStatus exit_status = daemon.Stop();
@@ -434,6 +455,12 @@ int Main(int argc, char** argv) {
   std::cout << "soak: daemon RSS start (25 % of the run) " << rss_start
             << " KiB, 50 % " << rss_half << " KiB, 75 % " << rss_three_quarters
             << " KiB, end " << rss_end << " KiB (peak " << hwm << " KiB)\n";
+  std::cout << "soak: daemon heap in use / kept free (KiB) at the same "
+               "moments:";
+  for (const auto& [in_use, kept] : heap)
+    std::cout << " " << static_cast<long>(in_use) << " / "
+              << static_cast<long>(kept);
+  std::cout << "\n";
   std::cout << "soak: acknowledged writes " << acked_total << ", lost " << lost
             << "\n";
   for (const auto& [kind, n] : counts.Get()) {
@@ -456,10 +483,16 @@ int Main(int argc, char** argv) {
   r.baseline_name = "goal: RSS growth < 10 %";
   r.lower_is_better = true;
   r.goal = "< 10 %";
-  r.note = "RSS from 25 % of the run to the end; " +
-           std::to_string(static_cast<int>(elapsed_s)) + " s mixed load, " +
-           std::to_string(served.load()) + " requests, lost writes " +
-           std::to_string(lost);
+  const double heap_growth_pct =
+      100.0 * (heap.back().first - heap.front().first) / heap.front().first;
+  r.note =
+      "RSS from 25 % of the run to the end (heap in use: " +
+      (std::isfinite(heap_growth_pct)
+           ? nlohmann::json(RoundSignificant(heap_growth_pct, 3)).dump() + " %"
+           : std::string("unknown")) +
+      "); " + std::to_string(static_cast<int>(elapsed_s)) + " s mixed load, " +
+      std::to_string(served.load()) + " requests, lost writes " +
+      std::to_string(lost);
   PrintBenchLine(r);
   return (lost == 0 && bad_5xx == 0 && alive) ? 0 : 1;
 }

@@ -1,7 +1,10 @@
 // frictiond: the friction material-library daemon. Parses flags, builds the
 // daemon, serves until SIGTERM/SIGINT.
+#include <chrono>
+#include <condition_variable>
 #include <cstdlib>
 #include <iostream>
+#include <mutex>
 #include <thread>
 
 #include <CLI/CLI.hpp>
@@ -35,6 +38,39 @@ void TuneAllocator() {
   mallopt(M_MMAP_THRESHOLD, 8 << 20);
   mallopt(M_TRIM_THRESHOLD, 16 << 20);
 }
+
+/// Hands memory freed inside the arenas back to the system every
+/// `period` (malloc_trim(0): page-aligned free chunks anywhere in an arena,
+/// not only its top). M_TRIM_THRESHOLD trims an arena's top only, so pages
+/// freed between live blocks stayed resident: in a 40 s soak the heap in
+/// use was 22-90 MB while the allocator kept 108 -> 269 MB free and RSS
+/// grew with it (GET /metrics frictiond_heap_*). A trim every 30 s costs a
+/// walk of the arenas' free lists and, for pages in use again, their page
+/// faults; per upload (stop 20) it cost a quarter of the CPU, so it is not
+/// done there.
+class HeapTrimmer {
+ public:
+  explicit HeapTrimmer(std::chrono::seconds period)
+      : thread_([this, period] {
+          std::unique_lock<std::mutex> lock(mu_);
+          while (!cv_.wait_for(lock, period, [this] { return stop_; }))
+            ::malloc_trim(0);
+        }) {}
+  ~HeapTrimmer() {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      stop_ = true;
+    }
+    cv_.notify_all();
+    thread_.join();
+  }
+
+ private:
+  std::mutex mu_;
+  std::condition_variable cv_;
+  bool stop_ = false;
+  std::thread thread_;  // last: started after the members it uses
+};
 
 }  // namespace
 
@@ -174,6 +210,7 @@ int main(int argc, char** argv) {
     if (max_connections_opt->count()) config.max_connections = max_connections;
     frictiond::Daemon daemon(config);
     const int bound = daemon.Start();
+    HeapTrimmer trimmer(std::chrono::seconds(30));
     std::thread waiter([&daemon, stop_signals] {
       int sig = 0;
       sigwait(&stop_signals, &sig);

@@ -2,6 +2,7 @@
 // and "Daemon"): the real `frictiond` binary runs as a child process on a
 // temporary database; requests go through cpp-httplib to 127.0.0.1.
 #include <cmath>
+#include <cstring>
 #include <memory>
 #include <string>
 #include <vector>
@@ -358,6 +359,15 @@ TEST_F(HttpApiTest, MetricsCountRequestsAndLatency) {
                       route + "\"}"),
             std::string::npos)
       << text;
+  // Process gauges: the heap (in use, kept free) and the stroke cache.
+  for (const char* gauge : {"\nfrictiond_heap_in_use_bytes ",
+                            "\nfrictiond_heap_free_bytes ",
+                            "\nfrictiond_stroke_cache_samples ",
+                            "\nfrictiond_stroke_cache_store_reads_total "}) {
+    const auto g = text.find(gauge);
+    ASSERT_NE(g, std::string::npos) << gauge << text;
+    EXPECT_GE(std::stod(text.substr(g + std::strlen(gauge))), 0) << gauge;
+  }
 }
 
 TEST_F(HttpApiTest, BundledDatasetIsServed) {

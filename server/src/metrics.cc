@@ -3,6 +3,8 @@
 #include <cstdio>
 #include <sstream>
 
+#include <malloc.h>
+
 namespace frictiond {
 
 void Metrics::Record(const std::string& route,
@@ -85,6 +87,20 @@ std::string Metrics::Render() const {
     last_base = base;
     out << "frictiond_" << name << " " << v->load() << "\n";
   }
+  return out.str();
+}
+
+std::string RenderHeapGauges() {
+  const struct mallinfo2 m = ::mallinfo2();
+  std::ostringstream out;
+  out << "# HELP frictiond_heap_in_use_bytes Heap bytes allocated and not "
+         "freed (glibc mallinfo2 uordblks + hblkhd).\n"
+      << "# TYPE frictiond_heap_in_use_bytes gauge\n"
+      << "frictiond_heap_in_use_bytes " << m.uordblks + m.hblkhd << "\n"
+      << "# HELP frictiond_heap_free_bytes Heap bytes freed but kept by the "
+         "allocator (glibc mallinfo2 fordblks).\n"
+      << "# TYPE frictiond_heap_free_bytes gauge\n"
+      << "frictiond_heap_free_bytes " << m.fordblks << "\n";
   return out.str();
 }
 

@@ -3,6 +3,7 @@
 #include "frictiond/proto/json_parse.h"
 #include "frictiond/server/auth.h"
 #include "frictiond/server/identification_json.h"
+#include "frictiond/server/metrics.h"
 #include "frictiond/server/routes.h"
 #include "frictiond/server/text.h"
 
@@ -112,9 +113,21 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
     return HttpResponse::Json(
         200, {{"status", "ok"}, {"backend", lib.store().BackendName()}});
   });
-  http.Route("GET", "/metrics", [&http](const HttpRequest&) {
-    return HttpResponse{
-        200, "text/plain; version=0.0.4", http.metrics().Render(), {}};
+  http.Route("GET", "/metrics", [&http, &lib](const HttpRequest&) {
+    const Ingestor& ingestor = lib.ingestor();
+    std::string text = http.metrics().Render() + RenderHeapGauges();
+    text +=
+        "# HELP frictiond_stroke_cache_samples Parsed stroke samples the "
+        "ingestor keeps (IngestorOptions::cache_sample_cap).\n"
+        "# TYPE frictiond_stroke_cache_samples gauge\n"
+        "frictiond_stroke_cache_samples " +
+        std::to_string(ingestor.cached_samples()) +
+        "\n# HELP frictiond_stroke_cache_store_reads_total Uploads read back "
+        "from the store one at a time by the ingestor.\n"
+        "# TYPE frictiond_stroke_cache_store_reads_total counter\n"
+        "frictiond_stroke_cache_store_reads_total " +
+        std::to_string(ingestor.store_reads()) + "\n";
+    return HttpResponse{200, "text/plain; version=0.0.4", std::move(text), {}};
   });
 
   // --- materials

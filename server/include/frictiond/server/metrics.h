@@ -14,6 +14,13 @@
 
 namespace frictiond {
 
+/// Gauges of the process's heap (glibc mallinfo2), Prometheus text:
+/// frictiond_heap_in_use_bytes (allocated and not freed, mmapped blocks
+/// included) and frictiond_heap_free_bytes (freed but kept by the
+/// allocator's arenas). RSS growth with a flat in-use figure is the
+/// allocator keeping memory, not a leak (bench/soak reports both).
+std::string RenderHeapGauges();
+
 /// Registry of request metrics. Thread-safe. Not copyable.
 class Metrics {
  public:
