@@ -12,6 +12,7 @@
 #include "frictiond/estimators/identification.h"
 #include "frictiond/estimators/stroke_csv.h"
 #include "frictiond/proto/actuator_json.h"
+#include "frictiond/proto/json_parse.h"
 #include "frictiond/proto/lugre_json.h"
 #include "frictiond/proto/slip_likelihood_json.h"
 #include "frictiond/server/identification_json.h"
@@ -125,6 +126,14 @@ int ParseVersionParam(const std::string& value) {
         "version",
         "version = '" + ShownText(value) + "' (must be a positive integer)");
   return static_cast<int>(x);
+}
+
+nlohmann::json ParseJsonBody(const std::string& body) {
+  try {
+    return ParseJson(body, "body");
+  } catch (const std::invalid_argument& e) {
+    throw RequestError(StatusCode::kInvalidArgument, "body", e.what());
+  }
 }
 
 std::optional<SlipLabelOptions> ParseLabelling(

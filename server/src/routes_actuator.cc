@@ -18,7 +18,6 @@
 
 #include "frictiond/proto/actuator_json.h"
 #include "frictiond/proto/actuator_report.h"
-#include "frictiond/proto/json_parse.h"
 #include "frictiond/proto/sim_export.h"
 #include "frictiond/server/model_lookup.h"
 #include "frictiond/server/routes.h"
@@ -83,12 +82,7 @@ std::string LogName(const std::string& trajectory, double kp) {
 // Parses the body: one log, or {"logs": [...]}. Nothing is stored on error.
 std::vector<ActuatorLog> ParseLogs(const std::string& body) {
   std::vector<ActuatorLog> logs;
-  json j;
-  try {
-    j = ParseJson(body, "body");
-  } catch (const std::invalid_argument& e) {
-    throw RequestError(StatusCode::kInvalidArgument, "body", e.what());
-  }
+  const json j = ParseJsonBody(body);
   if (!j.is_object())
     throw RequestError(
         StatusCode::kInvalidArgument, "body", "body must be a JSON object");

@@ -1,6 +1,5 @@
 #include <cmath>
 
-#include "frictiond/proto/json_parse.h"
 #include "frictiond/server/auth.h"
 #include "frictiond/server/identification_json.h"
 #include "frictiond/server/metrics.h"
@@ -24,14 +23,7 @@ namespace {
 
 // The body of a PUT: empty (= {}) or a JSON object.
 json JsonObjectBody(const std::string& body, const std::string& shape) {
-  json j = json::object();
-  if (!body.empty()) {
-    try {
-      j = ParseJson(body, "body");
-    } catch (const std::invalid_argument& e) {
-      throw RequestError(StatusCode::kInvalidArgument, "body", e.what());
-    }
-  }
+  const json j = body.empty() ? json::object() : ParseJsonBody(body);
   if (!j.is_object())
     throw RequestError(StatusCode::kInvalidArgument,
                        "body",

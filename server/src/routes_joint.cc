@@ -24,7 +24,6 @@
 #include "frictiond/estimators/joint_identification.h"
 #include "frictiond/estimators/repeatability.h"
 #include "frictiond/proto/joint_json.h"
-#include "frictiond/proto/json_parse.h"
 #include "frictiond/server/model_lookup.h"
 #include "frictiond/server/routes.h"
 
@@ -566,12 +565,7 @@ HttpResponse HandleGrid(FrictionLibrary& lib, const HttpRequest& req) {
 HttpResponse HandlePutRobot(FrictionLibrary& lib, const HttpRequest& req) {
   const std::string& id = req.params.at(0);
   CheckId(id, "id");
-  json j;
-  try {
-    j = ParseJson(req.body, "body");
-  } catch (const std::invalid_argument& e) {
-    throw RequestError(StatusCode::kInvalidArgument, "body", e.what());
-  }
+  const json j = ParseJsonBody(req.body);
   RobotDescription robot;
   try {
     robot = RobotFromJson(j);

@@ -76,4 +76,9 @@ double ParseNumberParam(const std::string& name, const std::string& value);
 /// "version".
 int ParseVersionParam(const std::string& value);
 
+/// Parses a request body as JSON (ParseJson: nesting bounded).
+/// @throws RequestError(StatusCode::kInvalidArgument) naming "body", with
+/// ParseJson's reason.
+nlohmann::json ParseJsonBody(const std::string& body);
+
 }  // namespace frictiond
