@@ -90,18 +90,26 @@ std::string Metrics::Render() const {
   return out.str();
 }
 
+std::string RenderSeries(const char* name,
+                         const char* type,
+                         const char* help,
+                         std::uint64_t value) {
+  return std::string("# HELP ") + name + " " + help + "\n# TYPE " + name + " " +
+         type + "\n" + name + " " + std::to_string(value) + "\n";
+}
+
 std::string RenderHeapGauges() {
   const struct mallinfo2 m = ::mallinfo2();
-  std::ostringstream out;
-  out << "# HELP frictiond_heap_in_use_bytes Heap bytes allocated and not "
-         "freed (glibc mallinfo2 uordblks + hblkhd).\n"
-      << "# TYPE frictiond_heap_in_use_bytes gauge\n"
-      << "frictiond_heap_in_use_bytes " << m.uordblks + m.hblkhd << "\n"
-      << "# HELP frictiond_heap_free_bytes Heap bytes freed but kept by the "
-         "allocator (glibc mallinfo2 fordblks).\n"
-      << "# TYPE frictiond_heap_free_bytes gauge\n"
-      << "frictiond_heap_free_bytes " << m.fordblks << "\n";
-  return out.str();
+  return RenderSeries("frictiond_heap_in_use_bytes",
+                      "gauge",
+                      "Heap bytes allocated and not freed (glibc mallinfo2 "
+                      "uordblks + hblkhd).",
+                      m.uordblks + m.hblkhd) +
+         RenderSeries("frictiond_heap_free_bytes",
+                      "gauge",
+                      "Heap bytes freed but kept by the allocator (glibc "
+                      "mallinfo2 fordblks).",
+                      m.fordblks);
 }
 
 }  // namespace frictiond

@@ -107,18 +107,18 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
   });
   http.Route("GET", "/metrics", [&http, &lib](const HttpRequest&) {
     const Ingestor& ingestor = lib.ingestor();
-    std::string text = http.metrics().Render() + RenderHeapGauges();
-    text +=
-        "# HELP frictiond_stroke_cache_samples Parsed stroke samples the "
-        "ingestor keeps (IngestorOptions::cache_sample_cap).\n"
-        "# TYPE frictiond_stroke_cache_samples gauge\n"
-        "frictiond_stroke_cache_samples " +
-        std::to_string(ingestor.cached_samples()) +
-        "\n# HELP frictiond_stroke_cache_store_reads_total Uploads read back "
-        "from the store one at a time by the ingestor.\n"
-        "# TYPE frictiond_stroke_cache_store_reads_total counter\n"
-        "frictiond_stroke_cache_store_reads_total " +
-        std::to_string(ingestor.store_reads()) + "\n";
+    std::string text =
+        http.metrics().Render() + RenderHeapGauges() +
+        RenderSeries("frictiond_stroke_cache_samples",
+                     "gauge",
+                     "Parsed stroke samples the ingestor keeps "
+                     "(IngestorOptions::cache_sample_cap).",
+                     ingestor.cached_samples()) +
+        RenderSeries("frictiond_stroke_cache_store_reads_total",
+                     "counter",
+                     "Uploads read back from the store one at a time by the "
+                     "ingestor.",
+                     ingestor.store_reads());
     return HttpResponse{200, "text/plain; version=0.0.4", std::move(text), {}};
   });
 

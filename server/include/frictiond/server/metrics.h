@@ -14,6 +14,13 @@
 
 namespace frictiond {
 
+/// One series without labels in Prometheus text format 0.0.4: its HELP and
+/// TYPE lines ("gauge" or "counter") and "name value".
+std::string RenderSeries(const char* name,
+                         const char* type,
+                         const char* help,
+                         std::uint64_t value);
+
 /// Gauges of the process's heap (glibc mallinfo2), Prometheus text:
 /// frictiond_heap_in_use_bytes (allocated and not freed, mmapped blocks
 /// included) and frictiond_heap_free_bytes (freed but kept by the
