@@ -407,18 +407,18 @@ int Main(int argc, char** argv) {
   // The daemon's heap in use and kept free (GET /metrics, mallinfo2) at the
   // same moments: RSS growing while the heap in use does not is the
   // allocator keeping freed memory, not a leak.
-  auto heap_kib = [&](const char* gauge) -> double {
-    auto res = daemon.MakeClient(10.0)->Get("/metrics");
-    if (!res) return std::nan("");
-    const std::string key = std::string("\n") + gauge + " ";
-    const auto at = res->body.find(key);
-    if (at == std::string::npos) return std::nan("");
-    return std::atof(res->body.c_str() + at + key.size()) / 1024.0;
-  };
   std::vector<std::pair<double, double>> heap;  // in use, free [KiB]
   auto sample_heap = [&] {
-    heap.emplace_back(heap_kib("frictiond_heap_in_use_bytes"),
-                      heap_kib("frictiond_heap_free_bytes"));
+    auto res = daemon.MakeClient(10.0)->Get("/metrics");  // one scrape
+    auto kib = [&](const char* gauge) {
+      const std::string key = std::string("\n") + gauge + " ";
+      const auto at = res ? res->body.find(key) : std::string::npos;
+      return at == std::string::npos
+                 ? std::nan("")
+                 : std::atof(res->body.c_str() + at + key.size()) / 1024.0;
+    };
+    heap.emplace_back(kib("frictiond_heap_in_use_bytes"),
+                      kib("frictiond_heap_free_bytes"));
   };
   // The RSS envelope: sampled every second; the growth compares the
   // highest RSS of the run's last quarter with the highest of its second
