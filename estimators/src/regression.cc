@@ -437,8 +437,22 @@ OlsResult FitOls(const Eigen::Ref<const Eigen::MatrixXd>& X,
   }
   S = S.selfadjointView<Eigen::Lower>();
   if (!S.allFinite() || !sum.allFinite()) {
+    // The first column (y last) whose sum or sum of squares is not finite;
+    // a cross moment alone cannot overflow when both squares are finite.
+    r.nonfinite_column = p;
+    for (int k = 0; k <= p; ++k) {
+      if (!std::isfinite(sum(k)) || !std::isfinite(S(k, k))) {
+        r.nonfinite_column = k;
+        break;
+      }
+    }
     r.status = FitStatus::kFailed;
-    r.why = "non-finite value in the design matrix or the response";
+    r.why = (r.nonfinite_column < p
+                 ? "column " + std::to_string(r.nonfinite_column) +
+                       " of the design matrix"
+                 : std::string("the response")) +
+            " has values that are not finite or too large to sum (their "
+            "squares overflow)";
     return r;
   }
   int intercept = -1;

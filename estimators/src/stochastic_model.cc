@@ -89,7 +89,8 @@ FitStatus FitRegression(const StrokeData& data,
                         double min_relative_span,
                         std::map<std::string, bool>* has_span,
                         RegressionModel* out,
-                        std::string* why) {
+                        std::string* why,
+                        std::string* field) {
   // Inputs without span: drop their terms (reported as unidentified).
   std::vector<Term> kept;
   std::vector<std::string> unidentified;
@@ -127,6 +128,20 @@ FitStatus FitRegression(const StrokeData& data,
   if (ols.status == FitStatus::kTooFewSamples ||
       ols.status == FitStatus::kFailed) {
     *why = ols.why;
+    const int bad = ols.nonfinite_column;
+    if (bad >= 0 && bad < static_cast<int>(kept.size())) {
+      // The input the term reads (a product "x*y": its first factor).
+      const std::string& input = kept[static_cast<std::size_t>(bad)].input;
+      *field = input.substr(0, input.find('*'));
+      *why = "term " + kept[static_cast<std::size_t>(bad)].Name() +
+             ": values not finite or too large to fit (their squares "
+             "overflow)";
+    } else if (bad >= 0) {
+      *field = "ft_n";
+      *why =
+          "mu = ft_n / fn_n: values not finite or too large to fit "
+          "(their squares overflow)";
+    }
     return ols.status;
   }
   // Expand back to the full term list (unidentified terms at 0).
@@ -380,6 +395,7 @@ StochasticFit FitStochasticModel(const StrokeData& input,
                                strokes.begin());
   if (static_cast<int>(rows.size()) < options.min_slip_samples) {
     fit.status = FitStatus::kTooFewSamples;
+    fit.field = "v_mm_s";  // slip is labelled from the speed
     fit.why =
         std::to_string(rows.size()) + " slipping samples (need at least " +
         std::to_string(options.min_slip_samples) +
@@ -428,8 +444,15 @@ StochasticFit FitStochasticModel(const StrokeData& input,
   }
   // eq. (1) and the Fn-only model of III-C.
   std::map<std::string, bool> has_span;
-  FitStatus st = FitRegression(
-      data, mu, rows, terms, options.min_relative_span, &has_span, &m.mu, &why);
+  FitStatus st = FitRegression(data,
+                               mu,
+                               rows,
+                               terms,
+                               options.min_relative_span,
+                               &has_span,
+                               &m.mu,
+                               &why,
+                               &fit.field);
   if (st == FitStatus::kTooFewSamples || st == FitStatus::kFailed) {
     fit.status = st;
     fit.why = "mu model: " + why;
@@ -443,7 +466,8 @@ StochasticFit FitStochasticModel(const StrokeData& input,
                                   options.min_relative_span,
                                   &has_span,
                                   &m.mu_fn_only,
-                                  &why_fn);
+                                  &why_fn,
+                                  &fit.field);
   if (st_fn == FitStatus::kTooFewSamples || st_fn == FitStatus::kFailed) {
     fit.status = st_fn;
     fit.why = "Fn-only model: " + why_fn;

@@ -171,11 +171,23 @@ TEST(FitOls, NonFiniteInputFailsNamingIt) {
   d.X(3500, 1) = std::nan("");
   OlsResult r = FitOls(d.X, d.y);
   EXPECT_EQ(r.status, FitStatus::kFailed);
-  EXPECT_NE(r.why.find("non-finite"), std::string::npos) << r.why;
+  EXPECT_NE(r.why.find("not finite"), std::string::npos) << r.why;
+  EXPECT_EQ(r.nonfinite_column, 1) << r.why;
   d = MakeData(4000, 0.0, 6);
   d.y(10) = INFINITY;
   r = FitOls(d.X, d.y);
   EXPECT_EQ(r.status, FitStatus::kFailed);
+  EXPECT_EQ(r.nonfinite_column, d.X.cols()) << r.why;  // y
+  // Finite values whose squares overflow.
+  d = MakeData(4000, 0.0, 6);
+  d.X.col(2) *= 1e200;
+  r = FitOls(d.X, d.y);
+  EXPECT_EQ(r.status, FitStatus::kFailed);
+  EXPECT_EQ(r.nonfinite_column, 2) << r.why;
+  EXPECT_NE(r.why.find("too large"), std::string::npos) << r.why;
+  // A fit that succeeds names no column.
+  d = MakeData(4000, 0.0, 6);
+  EXPECT_EQ(FitOls(d.X, d.y).nonfinite_column, -1);
 }
 
 // SelectQuantiles (used for the eps distribution and the span checks)

@@ -504,7 +504,7 @@ IngestResult FrictionLibrary::IngestStrokes(const std::string& material,
   if (fit.status != FitStatus::kOk && fit.status != FitStatus::kPartial) {
     throw RequestError(
         StatusCode::kFailedPrecondition,
-        "v_mm_s",
+        fit.field.empty() ? "body" : fit.field,
         "stroke accepted as CSV but no model can be identified: " + fit.why,
         json{{"fit_status", ToString(fit.status)}});
   }
@@ -628,6 +628,7 @@ FrictionLibrary::ModelSetFit FrictionLibrary::FitModelSet(
   StochasticFit& fit = id.fit;
   out.status = fit.status;
   out.why = fit.why;
+  out.field = fit.field;
   if (fit.status != FitStatus::kOk && fit.status != FitStatus::kPartial) {
     wait_families();
     return out;

@@ -89,9 +89,38 @@ TEST_F(LibraryTest, NoSlipIsUnprocessableAndStoresNothing) {
     EXPECT_EQ(e.code(), StatusCode::kFailedPrecondition);
     EXPECT_NE(std::string(e.what()).find("slipping samples"), std::string::npos)
         << e.what();
+    EXPECT_EQ(e.field(), "v_mm_s");  // slip is labelled from the speed
   }
   EXPECT_FALSE(lib_.store().GetMaterial("glass"));
   EXPECT_TRUE(lib_.store().ListStrokes("glass", "default").empty());
+}
+
+// Forces within the CSV rule (finite, > 0) but so large that eq. (1)'s
+// sums of squares overflow: refused naming the column that overflows, not
+// a fixed field (an outside attack with Fn ~ 1e200 N got "v_mm_s").
+TEST_F(LibraryTest, ForcesTooLargeToFitNameTheirColumnAndStoreNothing) {
+  struct Case {
+    double fn_scale, ft_scale;
+    const char* field;
+  };
+  for (const Case& c : {Case{1e200, 1e200, "fn_n"}, Case{1.0, 1e200, "ft_n"}}) {
+    testing::SimulationSpec spec;
+    spec.strokes = 6;
+    StrokeData d = testing::SimulateStrokes(spec, 7);
+    for (double& x : d.fn_n) x *= c.fn_scale;
+    for (double& x : d.ft_n) x *= c.ft_scale;
+    try {
+      lib_.IngestStrokes("steel", FormatStrokeCsv(d), {});
+      ADD_FAILURE() << "fitted forces scaled by " << c.fn_scale << ", "
+                    << c.ft_scale;
+    } catch (const RequestError& e) {
+      EXPECT_EQ(e.code(), StatusCode::kFailedPrecondition);
+      EXPECT_EQ(e.field(), c.field) << e.what();
+      EXPECT_NE(std::string(e.what()).find("too large"), std::string::npos)
+          << e.what();
+    }
+    EXPECT_FALSE(lib_.store().GetMaterial("steel"));
+  }
 }
 
 TEST_F(LibraryTest, AnUploadsAuditEntryIsStoredWithItAndOnlyThen) {

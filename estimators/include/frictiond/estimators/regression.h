@@ -97,6 +97,10 @@ struct OlsResult {
   double p_value = 1.0;          ///< P(F > f_stat) under H0: all slopes 0
   int samples = 0;
   int dof = 0;  ///< n - identified terms
+  /// With status kFailed for values that cannot be summed (not finite, or
+  /// so large that their squares overflow): the first such column of X
+  /// (0..p-1), or p for y; -1 otherwise. Lets a caller name the input.
+  int nonfinite_column = -1;
 };
 
 /// What FitOls computes besides the coefficients and their statistics.

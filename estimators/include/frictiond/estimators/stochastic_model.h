@@ -154,6 +154,11 @@ struct StochasticFit {
       FitStatus::kFailed;  ///< kOk, kPartial (some slope unidentified),
                            ///< kTooFewSamples, kFailed
   std::string why;
+  /// The input a failure traces to: a column whose values cannot be
+  /// fitted ("fn_n", "ft_n" for mu = ft_n/fn_n, "v_mm_s" or a covariate),
+  /// or "v_mm_s" when too few samples slip (slip is read from the speed);
+  /// empty when fitted.
+  std::string field;
   StochasticFrictionModel model;
 };
 

@@ -271,9 +271,10 @@ class FrictionLibrary {
   /// What FitModelSet identified.
   struct ModelSetFit {
     FitStatus status = FitStatus::kFailed;
-    std::string why;   ///< eq. (1)'s reason (status not ok)
-    std::string note;  ///< the family fitters' notes, "family: note; ..."
-    ModelSet set;      ///< every family; version and created_at unset
+    std::string why;    ///< eq. (1)'s reason (status not ok)
+    std::string field;  ///< the input eq. (1)'s failure traces to, if any
+    std::string note;   ///< the family fitters' notes, "family: note; ..."
+    ModelSet set;       ///< every family; version and created_at unset
   };
   /// THE fit step of an upload: identifies every model family of the pair
   /// from `strokes` (the ingestor's bounded data, the new upload last):
