@@ -241,6 +241,7 @@ void ParallelInProcess(double seconds) {
   for (const char* m : {"par-a", "par-b", "solo"})
     lib.IngestStrokes(m, StrokeCsv(90000), {});
   auto run = [&](const std::vector<std::string>& materials) {
+    const double cpu0 = SelfCpuSeconds();
     std::atomic<int> done{0};
     std::vector<std::thread> threads;
     const auto t0 = Clock::now();
@@ -253,7 +254,12 @@ void ParallelInProcess(double seconds) {
       });
     }
     for (auto& t : threads) t.join();
-    return done / SecondsSince(t0);
+    const double wall = SecondsSince(t0);
+    std::cerr << "upload_parallel: in-process, " << materials.size()
+              << " thread(s): CPU per upload "
+              << (SelfCpuSeconds() - cpu0) * 1e3 / done << " ms, "
+              << (SelfCpuSeconds() - cpu0) / wall << " cores busy\n";
+    return done / wall;
   };
   const double one = run({"solo"});
   const double two = run({"par-a", "par-b"});
