@@ -6,6 +6,8 @@
 #include <limits>
 #include <vector>
 
+#include "frictiond/estimators/preprocessing.h"
+
 namespace frictiond {
 
 StrokeCsvError::StrokeCsvError(std::size_t line,
@@ -138,6 +140,21 @@ StrokeData ParseStrokeCsv(std::string_view text,
                                "header",
                                "header: column 'intercept' is reserved for "
                                "the model's constant term (rename it)");
+        }
+        for (const std::string& derived : DerivedFeatureNames()) {
+          if (name == derived) {
+            // Computed from the required columns (CONTRACT.md); a user
+            // column of that name lost its values to the derived ones
+            // without a word, and a diagnosis `cause` naming it would be
+            // ambiguous.
+            throw StrokeCsvError(
+                line_no,
+                std::string(name),
+                "header: column " + Quote(name) +
+                    " is a derived feature the library computes from "
+                    "t_s, fn_n and v_mm_s (distance_mm, dwell_s, time_s, "
+                    "accel_mm_s2, fn_rate_n_s are reserved; rename it)");
+          }
         }
         for (const auto& prev : columns) {
           if (prev.name == name) {

@@ -164,6 +164,14 @@ TEST(StrokeCsv, RejectsBadInputNamingLineAndField) {
                1,
                "header",
                "'intercept' is reserved");
+  // Derived feature names are reserved too (a user column of that name
+  // was replaced by the derived values without a word).
+  for (const char* derived : {"distance_mm", "dwell_s", "time_s"})
+    expect_error(
+        std::string("t_s,fn_n,ft_n,v_mm_s,") + derived + "\n0,1,1,0,2\n",
+        1,
+        derived,
+        "is a derived feature");
   // A NUL or other control byte in a quoted cell is shown as '?': a NUL
   // ended the message at what() and lost the reason.
   expect_error(std::string("t_s,fn_n,ft_n,v_mm_s\n0,1,0.5\0"

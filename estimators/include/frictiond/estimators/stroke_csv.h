@@ -45,7 +45,9 @@ struct StrokeCsvOptions {
 /// lines starting with '#' (after optional spaces) and blank lines ignored,
 /// CRLF accepted. Required columns: t_s, fn_n, ft_n, v_mm_s. Optional: slip
 /// (0/1), stroke (integer). Every other column is a numeric covariate whose
-/// name must match [A-Za-z_][A-Za-z0-9_]{0,63}.
+/// name must match [A-Za-z_][A-Za-z0-9_]{0,63} and must not be reserved:
+/// `intercept` (the model's constant term) and the derived feature names
+/// (DerivedFeatureNames(): computed from the required columns).
 ///
 /// Every cell must be a finite number. Rules checked per row: fn_n > 0,
 /// ft_n >= 0, v_mm_s >= 0, t_s not decreasing, slip in {0,1}, stroke an
@@ -57,7 +59,9 @@ StrokeData ParseStrokeCsv(std::string_view text,
 
 /// Writes samples back as a stroke CSV (header + rows), including slip,
 /// stroke and covariates when present. Inverse of ParseStrokeCsv up to
-/// number formatting (17 significant digits are kept, so values round-trip).
+/// number formatting (17 significant digits are kept, so values round-trip)
+/// for data without derived features (AddDerivedFeatures), whose names
+/// ParseStrokeCsv refuses.
 std::string FormatStrokeCsv(const StrokeData& data);
 
 }  // namespace frictiond
