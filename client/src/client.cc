@@ -8,6 +8,7 @@
 
 #include "frictiond/proto/json_parse.h"
 
+#include "exchange_watchdog.h"
 #include "model_cache.h"
 
 namespace frictiond {
@@ -29,8 +30,12 @@ std::string UrlEncode(const std::string& s) {
   return out;
 }
 
+/// Bytes a reply's status line and headers may take (ExchangeWatchdog).
+constexpr std::uint64_t kMaxReplyHeaderBytes = std::uint64_t{1} << 20;
+
 struct FrictionClient::Impl {
-  explicit Impl(const ClientOptions& o) : http(o.base_url) {
+  explicit Impl(const ClientOptions& o)
+      : http(o.base_url), watchdog([this] { http.stop(); }) {
     const auto sec = static_cast<time_t>(o.timeout_s);
     const auto usec = static_cast<time_t>((o.timeout_s - sec) * 1e6);
     http.set_connection_timeout(sec, usec);
@@ -42,18 +47,21 @@ struct FrictionClient::Impl {
     // every upload after the first on a kept-alive connection (measured with
     // bench/upload: 43 ms per upload, 2.1 ms with TCP_NODELAY).
     http.set_tcp_nodelay(true);
+    http.set_socket_options([this](socket_t s) { watchdog.OnSocket(s); });
     max_reply_bytes = o.max_reply_bytes;
     deadline_s = o.deadline_s;
     if (!o.robot.empty()) headers.emplace("X-Robot-Id", o.robot);
     if (!o.token.empty()) headers.emplace("Authorization", "Bearer " + o.token);
   }
   httplib::Client http;
+  internal::ExchangeWatchdog watchdog;  // stops `http`: declared after it
   httplib::Headers headers;
   std::size_t max_reply_bytes = 0;
   double deadline_s = 0;
 
-  /// Sends one request; the reply body is abandoned beyond max_reply_bytes
-  /// or deadline_s (then *limit says which; the result is an error).
+  /// Sends one request; the reply is abandoned beyond max_reply_bytes (its
+  /// body), kMaxReplyHeaderBytes (what comes before the body) or deadline_s
+  /// (all of it); then *limit says which and the result is an error.
   httplib::Result Send(const std::string& method,
                        const std::string& path,
                        const std::string* body,
@@ -78,6 +86,7 @@ struct FrictionClient::Impl {
                                std::size_t n,
                                std::uint64_t /*offset*/,
                                std::uint64_t total) {
+      if (received.empty()) watchdog.OnBody();
       if (total > max || received.size() + n > max) {
         *limit = "reply larger than max_reply_bytes = " + std::to_string(max);
         return false;
@@ -90,7 +99,20 @@ struct FrictionClient::Impl {
       received.append(data, n);
       return true;
     };
+    watchdog.Begin(
+        deadline,
+        kMaxReplyHeaderBytes,
+        http.is_socket_open() ? static_cast<int>(http.socket()) : -1);
     httplib::Result res = http.send(req);
+    const std::string fired = watchdog.End();
+    if (!res && limit->empty()) {
+      if (fired == "deadline")
+        *limit = "reply not complete within deadline_s = " +
+                 std::to_string(deadline_s) + " s";
+      else if (fired == "headers")
+        *limit = "reply headers larger than " +
+                 std::to_string(kMaxReplyHeaderBytes) + " bytes";
+    }
     if (res) res->body = std::move(received);
     return res;
   }

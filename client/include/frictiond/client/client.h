@@ -58,10 +58,11 @@ struct ClientOptions {
   double timeout_s = 5.0;             ///< connect/read timeout
   /// A reply body larger than this is abandoned (ClientError, status 0):
   /// whatever answers at base_url cannot make the client run out of memory.
+  /// A reply's status line and headers may take at most 1 MiB.
   std::size_t max_reply_bytes = std::size_t{256} << 20;
-  /// A reply body still arriving this long after the request was sent is
-  /// abandoned [s] (a server sending one byte per second kept the CLI
-  /// waiting for ever; timeout_s bounds each read only).
+  /// A reply (headers or body) still arriving this long after the request
+  /// was sent is abandoned [s] (a server sending one byte per second kept
+  /// the CLI waiting for ever; timeout_s bounds each read only).
   double deadline_s = 120.0;
   /// API token secret, sent as "Authorization: Bearer <token>" when not
   /// empty (docs/auth.md).
