@@ -43,6 +43,8 @@ const char* LcmDropReasonName(LcmDropReason r) {
       return "internal";
     case LcmDropReason::kUnavailable:
       return "unavailable";
+    case LcmDropReason::kReceiveBufferFull:
+      return "receive_buffer_full";
   }
   return "unknown";
 }

@@ -13,6 +13,7 @@
 #include <iostream>
 #include <mutex>
 #include <random>
+#include <set>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -34,6 +35,7 @@
 #include "frictiond/stroke_chunk_v2.hpp"
 
 #include "lcm_messages.h"
+#include "udp_drops.h"
 
 namespace frictiond {
 
@@ -147,8 +149,18 @@ class LcmEndpointImpl {
                             LcmDropReason::kWrongHash,
                             LcmDropReason::kOversized,
                             LcmDropReason::kInternal,
-                            LcmDropReason::kUnavailable})
+                            LcmDropReason::kUnavailable,
+                            LcmDropReason::kReceiveBufferFull})
       Count(DropCounter(r), 0);
+    // The provider's sockets: the UDP sockets that appeared while it was
+    // created and subscribed (LCM does not expose them).
+    {
+      std::set<std::uint64_t> opened;
+      for (std::uint64_t inode : internal::SocketInodes())
+        if (!sockets_before_.count(inode)) opened.insert(inode);
+      lcm_sockets_ = internal::UdpSocketsAmong(opened);
+      kernel_drops_ = internal::ReadUdpDrops(lcm_sockets_);
+    }
     Count("lcm_signed_accepted_total", 0);
     // Tell the fleet about every new model version, from any endpoint.
     std::weak_ptr<LcmPublisher> weak = publisher_;
@@ -230,11 +242,25 @@ class LcmEndpointImpl {
         }
         for (const ReassemblyEvent& e : reassembler_.Poll(NowMonotonicS()))
           OnReassemblyEvent(e);
+        CountKernelDrops();
       } catch (const std::exception& e) {
         // Nothing may leave the thread; a handler bug must not kill LCM.
         std::cerr << "frictiond: lcm endpoint: " << e.what() << "\n";
       }
     }
+  }
+
+  // Adds the datagrams the kernel dropped on the provider's sockets since
+  // the last look (at most once a second: it reads /proc).
+  void CountKernelDrops() {
+    const double now = NowMonotonicS();
+    if (lcm_sockets_.empty() || now < next_drop_check_s_) return;
+    next_drop_check_s_ = now + 1.0;
+    const std::uint64_t drops = internal::ReadUdpDrops(lcm_sockets_);
+    if (drops > kernel_drops_)
+      Count(DropCounter(LcmDropReason::kReceiveBufferFull),
+            static_cast<std::int64_t>(drops - kernel_drops_));
+    kernel_drops_ = std::max(kernel_drops_, drops);
   }
 
   using SigningKeys = std::vector<std::pair<std::string, std::string>>;
@@ -921,7 +947,12 @@ class LcmEndpointImpl {
 
   FrictionLibrary& library_;
   LcmEndpointOptions options_;
+  // Before lcm_ (declaration order): the sockets open before the provider.
+  std::set<std::uint64_t> sockets_before_ = internal::SocketInodes();
   lcm::LCM lcm_;
+  std::set<std::uint64_t> lcm_sockets_;  // the provider's UDP sockets
+  std::uint64_t kernel_drops_ = 0;       // their drops when last counted
+  double next_drop_check_s_ = 0.0;
   std::shared_ptr<LcmPublisher> publisher_;
   StrokeReassembler reassembler_;
   LcmAuthenticator auth_;

@@ -7,12 +7,14 @@
 // oversized string — is dropped, counted in frictiond_lcm_dropped_total by
 // reason and answered with error_v1 naming the field; afterwards a valid
 // query is still answered, and nothing was stored.
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <functional>
 #include <memory>
 #include <sstream>
 #include <string>
+#include <thread>
 
 #include <gtest/gtest.h>
 #include <sqlite3.h>
@@ -249,6 +251,29 @@ Chunk ValidChunk() {
   c.ft_n = {0.2, 0.2};
   c.v_mm_s = {1, 1};
   return c;
+}
+
+// A flood the endpoint cannot read in time overflows its socket's receive
+// buffer; the kernel drops datagrams, which LCM does not report. They are
+// counted (udp_drops.h) and the endpoint serves on.
+TEST_F(LcmHostileTest, DatagramsTheKernelDroppedAreCounted) {
+  EXPECT_EQ(Dropped("receive_buffer_full"), 0);
+  endpoint_->Stop();  // its socket stays open, and nobody reads it
+  const std::string junk(1000, 'x');
+  for (int i = 0; i < 5000; ++i)
+    inbox_->lcm().publish(
+        "FRICTIOND_FLOOD", junk.data(), static_cast<unsigned>(junk.size()));
+  endpoint_->Start();
+  // Counted at most a second after the endpoint runs again.
+  const auto deadline =
+      std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  while (Dropped("receive_buffer_full") == 0 &&
+         std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  const long long dropped = Dropped("receive_buffer_full");
+  EXPECT_GT(dropped, 0);
+  EXPECT_LT(dropped, 5000);  // the buffer held some
+  ExpectQueryAnswered("after-flood");
 }
 
 // The issue's ~30-byte query: fingerprint, utime, request_id of length 0.

@@ -58,6 +58,10 @@ enum class LcmDropReason {
   /// The store is unavailable (e.g. PostgreSQL away): answered with an
   /// error_v1 whose field is "(store)", nothing stored; send it again later.
   kUnavailable,
+  /// Dropped by the kernel before the endpoint read it: the LCM receive
+  /// socket's buffer was full (udp_drops.h). Counted, never answered (the
+  /// sender is unknown).
+  kReceiveBufferFull,
 };
 
 /// "unknown_robot", "forged", ... (the /metrics label).
