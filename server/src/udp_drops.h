@@ -9,7 +9,10 @@
 /// socket's buffer lost messages without a trace. The LCM endpoint notes the
 /// sockets the provider opened (the inodes that appear while it is created,
 /// SocketInodes before and after) and counts their drops in
-/// frictiond_lcm_dropped_total{reason="receive_buffer_full"}.
+/// frictiond_lcm_dropped_total{reason="receive_buffer_full"}. A UDP socket
+/// another thread opens during that window is counted too while it stays
+/// open (the daemon opens none; two endpoints built at once in one process,
+/// as no caller does, would share their counts).
 
 #include <cstdint>
 #include <set>
