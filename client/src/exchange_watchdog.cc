@@ -12,8 +12,11 @@
 namespace frictiond::internal {
 
 ExchangeWatchdog::ExchangeWatchdog(std::function<void()> stop,
+                                   std::uint64_t max_header_bytes,
                                    std::chrono::milliseconds poll)
-    : stop_(std::move(stop)), poll_(poll) {}
+    : stop_(std::move(stop)),
+      max_header_bytes_(max_header_bytes),
+      poll_(poll) {}
 
 ExchangeWatchdog::~ExchangeWatchdog() {
   {
@@ -39,9 +42,7 @@ std::uint64_t ExchangeWatchdog::BytesRead(int socket) {
   return received > unread ? received - unread : 0;
 }
 
-void ExchangeWatchdog::Begin(Clock::time_point deadline,
-                             std::uint64_t max_header_bytes,
-                             int socket) {
+void ExchangeWatchdog::Begin(Clock::time_point deadline, int socket) {
   const std::uint64_t base = BytesRead(socket);
   bool wake = false;
   {
@@ -50,7 +51,6 @@ void ExchangeWatchdog::Begin(Clock::time_point deadline,
     body_ = false;
     socket_ = socket;
     base_ = base;
-    max_header_bytes_ = max_header_bytes;
     deadline_ = deadline;
     fired_.clear();
     if (!thread_.joinable()) thread_ = std::thread([this] { Loop(); });

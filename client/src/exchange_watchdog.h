@@ -8,9 +8,9 @@
 /// nor on a line's length before its end arrives, and its read timeout
 /// holds per read. A hostile server answering at base_url could make the
 /// client grow without bound (endless header lines, or one line without
-/// end) or wait for ever (one header byte per read timeout). The reply body
-/// is bounded where it is received (client.cc, content receiver); this
-/// covers what comes before it.
+/// end) or wait for ever (one header byte per read timeout). The body's
+/// size is bounded where it is received (client.cc, content receiver); its
+/// time, like the headers', here: the one place deadline_s is enforced.
 ///
 /// How: while an exchange is in flight, a thread of its own samples the
 /// socket every `poll` (bytes read = TCP_INFO bytes received minus the
@@ -39,9 +39,11 @@ class ExchangeWatchdog {
  public:
   using Clock = std::chrono::steady_clock;
 
-  /// `stop` ends the exchange in flight (called from the watchdog's thread).
-  explicit ExchangeWatchdog(
+  /// `stop` ends the exchange in flight (called from the watchdog's thread);
+  /// at most `max_header_bytes` may be read before a reply's body begins.
+  ExchangeWatchdog(
       std::function<void()> stop,
+      std::uint64_t max_header_bytes,
       std::chrono::milliseconds poll = std::chrono::milliseconds(5));
   ~ExchangeWatchdog();
   ExchangeWatchdog(const ExchangeWatchdog&) = delete;
@@ -49,9 +51,7 @@ class ExchangeWatchdog {
 
   /// An exchange begins. `socket` is the connection it will use when one is
   /// open already (kept alive), else -1 (OnSocket gives the new one).
-  void Begin(Clock::time_point deadline,
-             std::uint64_t max_header_bytes,
-             int socket);
+  void Begin(Clock::time_point deadline, int socket);
   /// A connection was opened (httplib's socket options hook).
   void OnSocket(int socket);
   /// The reply body began (its first piece was received).
@@ -66,6 +66,7 @@ class ExchangeWatchdog {
   void Loop();
 
   std::function<void()> stop_;
+  const std::uint64_t max_header_bytes_;
   std::chrono::milliseconds poll_;
   std::mutex mu_;
   std::condition_variable cv_;
@@ -79,7 +80,6 @@ class ExchangeWatchdog {
   static constexpr std::chrono::seconds kParkAfter{1};
   int socket_ = -1;
   std::uint64_t base_ = 0;  // BytesRead(socket_) when watching began
-  std::uint64_t max_header_bytes_ = 0;
   Clock::time_point deadline_;
   std::string fired_;
   std::thread thread_;  // started by the first Begin
