@@ -147,13 +147,16 @@ StrokeData ParseStrokeCsv(std::string_view text,
             // column of that name lost its values to the derived ones
             // without a word, and a diagnosis `cause` naming it would be
             // ambiguous.
+            std::string reserved;  // the list itself, not a copy of it
+            for (const std::string& d : DerivedFeatureNames())
+              reserved += (reserved.empty() ? "" : ", ") + d;
             throw StrokeCsvError(
                 line_no,
                 std::string(name),
                 "header: column " + Quote(name) +
                     " is a derived feature the library computes from "
-                    "t_s, fn_n and v_mm_s (distance_mm, dwell_s, time_s, "
-                    "accel_mm_s2, fn_rate_n_s are reserved; rename it)");
+                    "t_s, fn_n and v_mm_s (" +
+                    reserved + " are reserved; rename it)");
           }
         }
         for (const auto& prev : columns) {
