@@ -41,7 +41,12 @@ void FitWorkers::PostShare(std::function<void()> task) {
 FitWorkers::Refit FitWorkers::Begin() {
   std::lock_guard<std::mutex> lock(load_mu_);
   ++in_flight_;
-  return Refit(this, SplitFitsLocked());
+  return Refit(this);
+}
+
+bool FitWorkers::Refit::split() const {
+  std::lock_guard<std::mutex> lock(pool_->load_mu_);
+  return pool_->SplitFitsLocked();
 }
 
 bool FitWorkers::SplitFitsLocked() const {
@@ -49,7 +54,7 @@ bool FitWorkers::SplitFitsLocked() const {
 }
 
 FitWorkers::Refit::Refit(Refit&& other) noexcept
-    : pool_(other.pool_), split_(other.split_) {
+    : pool_(other.pool_) {
   other.pool_ = nullptr;
 }
 

@@ -483,6 +483,9 @@ IngestResult FrictionLibrary::IngestStrokes(const std::string& material,
   }
   // 2. One upload of the pair at a time, in arrival order.
   Ingestor::PairLock pair = ingestor_->Lock(material, options.fingertip);
+  // Counted from here to the commit: whether a refit splits depends on the
+  // uploads in flight, not only on the refits (fit_workers.h).
+  const FitWorkers::Refit slot = fit_workers_->Begin();
   // 3. Labelling: explicit, else the pair's previous one, else defaults.
   SlipLabelOptions labelling;
   auto previous = FindModel(material, options.fingertip);
@@ -500,7 +503,8 @@ IngestResult FrictionLibrary::IngestStrokes(const std::string& material,
                                 data.strokes,
                                 upload,
                                 previous.get(),
-                                labelling);
+                                labelling,
+                                slot);
   if (fit.status != FitStatus::kOk && fit.status != FitStatus::kPartial) {
     throw RequestError(
         StatusCode::kFailedPrecondition,
@@ -570,7 +574,8 @@ FrictionLibrary::ModelSetFit FrictionLibrary::FitModelSet(
     const StrokeData& strokes,
     const StrokeData& upload,
     const CachedModel* previous,
-    const SlipLabelOptions& labelling) const {
+    const SlipLabelOptions& labelling,
+    const FitWorkers::Refit& slot) const {
   StochasticFitOptions fit_options;
   if (previous && previous->set.stochastic) {
     // Keep an extended model's terms (product columns included) and its eps
@@ -606,8 +611,7 @@ FrictionLibrary::ModelSetFit FrictionLibrary::FitModelSet(
   };
   MaterialIdentificationOptions id_options;
   id_options.fit = fit_options;
-  const FitWorkers::Refit refit = fit_workers_->Begin();
-  if (refit.split()) {
+  if (slot.split()) {
     id_options.post = [this](std::function<void()> task) {
       fit_workers_->PostShare(std::move(task));
     };

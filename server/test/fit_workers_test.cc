@@ -57,31 +57,46 @@ TEST(FitWorkers, TwoWorkersRunTwoTasksAtOnce) {
             std::future_status::ready);
 }
 
-// Work-conserving: with two hardware threads one refit splits, a second
-// refit in flight beside it does not; when both are gone, a refit splits
-// again.
-TEST(FitWorkers, SplitsOnlyWhileEveryRefitCanHaveTwoThreads) {
+// Work-conserving: with two hardware threads an upload alone splits its
+// refit; while a second upload is in flight neither does (the answer is
+// the state when asked, not when the upload began); when one is gone, the
+// other splits again.
+TEST(FitWorkers, SplitsOnlyWhileEveryUploadCanHaveTwoThreads) {
   FitWorkers two(2);
   {
     const FitWorkers::Refit a = two.Begin();
     EXPECT_TRUE(a.split());
-    const FitWorkers::Refit b = two.Begin();
-    EXPECT_FALSE(b.split());
+    {
+      const FitWorkers::Refit b = two.Begin();
+      EXPECT_FALSE(b.split());
+      EXPECT_FALSE(a.split());  // b arrived: a refit starting now stays whole
+    }
+    EXPECT_TRUE(a.split());
   }
   EXPECT_TRUE(two.Begin().split());
   FitWorkers four(4);
   const FitWorkers::Refit a = four.Begin();
   const FitWorkers::Refit b = four.Begin();
-  const FitWorkers::Refit c = four.Begin();
   EXPECT_TRUE(a.split());
   EXPECT_TRUE(b.split());
-  EXPECT_FALSE(c.split());
+  {
+    const FitWorkers::Refit c = four.Begin();
+    EXPECT_FALSE(a.split());
+    EXPECT_FALSE(c.split());
+  }
+  EXPECT_TRUE(b.split());
+  FitWorkers moved_from(2);
+  {
+    FitWorkers::Refit first = moved_from.Begin();
+    const FitWorkers::Refit second(std::move(first));  // still one upload
+    EXPECT_TRUE(second.split());
+  }
   FitWorkers one(1);
   EXPECT_FALSE(one.Begin().split());
 }
 
 // A posted share runs while the pool is idle, and is skipped (left to its
-// caller) when more refits are in flight than split by the time a worker
+// caller) when more uploads are in flight than split by the time a worker
 // reaches it.
 TEST(FitWorkers, PostedShareIsSkippedWhenTheMachineBecameBusy) {
   for (bool busy : {false, true}) {

@@ -9,12 +9,20 @@
 /// the share itself when it is done before a worker started it) is a no-op
 /// here, so a busy pool never delays an upload.
 ///
-/// Work-conserving: a refit splits only while every refit in flight can have
-/// two hardware threads (Begin). Splitting costs CPU (the shares' start and
-/// hand-over, two threads' caches), which pays while a core is idle and is
-/// pure loss when every core already serves an upload: measured in-process
-/// with two clients on two materials, 697 uploads/s always splitting vs
-/// 764-818 never splitting, while one client alone gains 14-23 % from it.
+/// Work-conserving: a refit splits only while every upload in flight can
+/// have two hardware threads. An upload counts from the moment it holds its
+/// pair until its commit (Begin), not only during its refit: over HTTP a
+/// quarter of an upload's time is parse, commit and fsync, and a refit that
+/// split because the other upload was committing just then made three
+/// threads compete for two cores (the share's hand-over and the caller
+/// waiting for it cost more than the share saved). Splitting costs CPU (the
+/// shares' start and hand-over, two threads' caches), which pays while a
+/// core is idle and is pure loss when every core already serves an upload.
+/// Measured (bench/upload, 2 hardware threads, daemon over HTTP): counting
+/// refits only, two clients on two materials 690-860 uploads/s; never
+/// splitting 875-888 with one client 503-557 and in-process one client
+/// 550 instead of 640-660 uploads/s; counting uploads: see fit_workers.cc's
+/// commit and docs/architecture.md.
 ///
 /// @code
 ///   FitWorkers workers(2);
@@ -54,22 +62,24 @@ class FitWorkers {
     Refit(const Refit&) = delete;
     Refit& operator=(const Refit&) = delete;
     Refit& operator=(Refit&&) = delete;
-    /// Whether this refit should post its second share: true when, with it,
-    /// at most threads/2 refits are in flight (decided at Begin).
-    bool split() const { return split_; }
+    /// Whether this upload's refit should post its second share now: true
+    /// when at most threads/2 uploads are in flight, this one included.
+    /// Ask when the refit starts (another upload may have begun meanwhile).
+    bool split() const;
 
    private:
     friend class FitWorkers;
-    Refit(FitWorkers* pool, bool split) : pool_(pool), split_(split) {}
+    explicit Refit(FitWorkers* pool) : pool_(pool) {}
     FitWorkers* pool_;
-    bool split_;
   };
-  /// Counts a refit until the returned Refit goes.
+  /// Counts an upload in flight until the returned Refit goes: take it once
+  /// the upload holds its pair (an upload waiting for its pair's lock does
+  /// not compete for a core) and keep it through the commit.
   Refit Begin();
 
   /// Like Post for a refit's second share, which its caller runs itself
   /// when no worker has started it (IdentifyMaterial): a worker skips the
-  /// task when, by the time it would start it, more refits are in flight
+  /// task when, by the time it would start it, more uploads are in flight
   /// than split (another upload arrived meanwhile).
   void PostShare(std::function<void()> task);
 
@@ -81,11 +91,11 @@ class FitWorkers {
   std::deque<std::function<void()>> queue_;
   bool stopping_ = false;
   std::vector<std::thread> threads_;
-  /// The one split rule: every refit in flight can have two hardware
+  /// The one split rule: every upload in flight can have two hardware
   /// threads. Call with load_mu_ held.
   bool SplitFitsLocked() const;
   std::mutex load_mu_;
-  int in_flight_ = 0;  // refits between Begin and ~Refit
+  int in_flight_ = 0;  // uploads between Begin and ~Refit
 };
 
 }  // namespace frictiond

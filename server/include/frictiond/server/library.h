@@ -287,7 +287,8 @@ class FrictionLibrary {
                           const StrokeData& strokes,
                           const StrokeData& upload,
                           const CachedModel* previous,
-                          const SlipLabelOptions& labelling) const;
+                          const SlipLabelOptions& labelling,
+                          const FitWorkers::Refit& slot) const;
   /// Caches a version just committed (made from what was committed).
   std::shared_ptr<const CachedModel> Publish(const nlohmann::json& doc,
                                              const ModelRecord& record);
