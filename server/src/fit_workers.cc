@@ -53,8 +53,7 @@ bool FitWorkers::SplitFitsLocked() const {
   return 2 * in_flight_ <= static_cast<int>(threads_.size());
 }
 
-FitWorkers::Refit::Refit(Refit&& other) noexcept
-    : pool_(other.pool_) {
+FitWorkers::Refit::Refit(Refit&& other) noexcept : pool_(other.pool_) {
   other.pool_ = nullptr;
 }
 
