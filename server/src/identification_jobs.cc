@@ -321,13 +321,6 @@ void AuditStrokeWrite(Store& store,
   }
 }
 
-// The field a validation message names: the text before " = " or ":".
-std::string FieldOf(const std::string& message) {
-  const std::size_t eq = message.find(" = ");
-  const std::size_t colon = message.find(':');
-  return message.substr(0, std::min(eq, colon));
-}
-
 }  // namespace
 
 StrokeOutcome JobStrokeCollector::AddStroke(IdentificationJob* job,
@@ -345,7 +338,7 @@ StrokeOutcome JobStrokeCollector::AddStroke(IdentificationJob* job,
     out.message = "t_s: the stroke lasts " + std::to_string(duration_s) +
                   " s (the plan allows max_duration_s = " +
                   std::to_string(plan.max_duration_s) + " s)";
-    out.field = FieldOf(out.message);
+    out.field = "t_s";
     out.detail = "stroke rejected: " + out.message;
     return out;
   }

@@ -57,13 +57,6 @@ double NowMonotonicS() {
       .count();
 }
 
-// The field a validation message names: the text before " = " or ":".
-std::string FieldOf(const std::string& message) {
-  const std::size_t eq = message.find(" = ");
-  const std::size_t colon = message.find(':');
-  return message.substr(0, std::min(eq, colon));
-}
-
 // Job whose ingest is running on this thread, for the model listener.
 thread_local std::int64_t tl_ingesting_job = 0;
 
@@ -755,7 +748,7 @@ class LcmEndpointImpl {
     try {
       outcome = reassembler_.Add(c, NowMonotonicS());
     } catch (const std::invalid_argument& e) {
-      return reject(FieldOf(e.what()), e.what());
+      return reject(FieldNamedIn(e.what()), e.what());
     }
     if (outcome == ChunkOutcome::kDuplicate) return;
     collector_.NoteReceiving(&*job, m.stroke, m.robot);

@@ -75,6 +75,15 @@ int HttpStatusFor(StatusCode code) {
   return 500;
 }
 
+std::string FieldNamedIn(const std::string& message) {
+  std::string_view m = message;
+  if (m.rfind("line ", 0) == 0 || m.rfind("sample ", 0) == 0) {
+    const std::size_t c = m.find(": ");
+    if (c != std::string_view::npos) m.remove_prefix(c + 2);
+  }
+  return std::string(m.substr(0, m.find_first_of(" :")));
+}
+
 bool IsValidId(const std::string& id) {
   if (id.empty() || id.size() > 64 || id == "." || id == "..") return false;
   for (char c : id) {

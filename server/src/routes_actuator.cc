@@ -60,13 +60,6 @@ void RequireJson(const HttpRequest& req) {
         "Content-Type '" + ct.substr(0, 64) + "' (must be application/json)");
 }
 
-// The field a parser message starts with ("entries[3].position: missing"
-// -> "entries[3].position", "mass = -1 (...)" -> "mass").
-std::string FieldOf(const std::string& message) {
-  const auto end = message.find_first_of(" :");
-  return message.substr(0, end);
-}
-
 // A log's name: its trajectory and gain, "sin_sin_kp100". The gain is
 // validated (finite, > 0) but unbounded: whole gains below 2^53 print as
 // integers (truncated, as stored names have always been), others in full
@@ -92,7 +85,7 @@ std::vector<ActuatorLog> ParseLogs(const std::string& body) {
       log.name = LogName(x.value("trajectory", ""), log.kp);
       logs.push_back(std::move(log));
     } catch (const std::invalid_argument& e) {
-      const std::string f = FieldOf(e.what());
+      const std::string f = FieldNamedIn(e.what());
       throw RequestError(
           StatusCode::kInvalidArgument, prefix + f, prefix + e.what());
     }

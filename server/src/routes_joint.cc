@@ -43,21 +43,9 @@ std::string Num(double x) {
   return buf;
 }
 
-// The field a validator's message starts with ("salt_um = 0 (...)",
-// "joints[1].stiffness = ...", "line 3: mu = ..." -> "mu").
-std::string FieldOf(const std::string& message) {
-  std::string m = message;
-  if (m.rfind("line ", 0) == 0 || m.rfind("sample ", 0) == 0) {
-    const auto c = m.find(": ");
-    if (c != std::string::npos) m = m.substr(c + 2);
-  }
-  const auto end = m.find_first_of(" :");
-  return m.substr(0, end);
-}
-
 [[noreturn]] void BadInput(const std::invalid_argument& e,
                            const std::string& fallback_field) {
-  std::string field = FieldOf(e.what());
+  std::string field = FieldNamedIn(e.what());
   if (field.empty()) field = fallback_field;
   throw RequestError(StatusCode::kInvalidArgument, field, e.what());
 }
