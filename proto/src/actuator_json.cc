@@ -56,7 +56,10 @@ std::string Text(const json& obj, const std::string& key) {
 }  // namespace
 
 ActuatorLog ParseActuatorLog(std::string_view text, const std::string& name) {
-  const json j = ParseBounded(text, "log");
+  return ActuatorLogFromJson(ParseBounded(text, "log"), name);
+}
+
+ActuatorLog ActuatorLogFromJson(const json& j, const std::string& name) {
   if (!j.is_object()) throw std::invalid_argument("log: must be a JSON object");
   ActuatorLog log;
   log.name = name;

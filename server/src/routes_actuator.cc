@@ -81,7 +81,7 @@ std::vector<ActuatorLog> ParseLogs(const std::string& body) {
         StatusCode::kInvalidArgument, "body", "body must be a JSON object");
   auto parse_one = [&](const json& x, const std::string& prefix) {
     try {
-      ActuatorLog log = ParseActuatorLog(x.dump());
+      ActuatorLog log = ActuatorLogFromJson(x);
       log.name = LogName(x.value("trajectory", ""), log.kp);
       logs.push_back(std::move(log));
     } catch (const std::invalid_argument& e) {

@@ -33,6 +33,10 @@ inline constexpr std::size_t kMaxActuatorLogEntries = 200000;
 /// missing", "dt = -1 (must be finite and > 0)").
 ActuatorLog ParseActuatorLog(std::string_view text,
                              const std::string& name = "");
+/// The same validation of a log already parsed (an element of an upload's
+/// `logs` array: the text is parsed once). The caller bounded its size.
+ActuatorLog ActuatorLogFromJson(const nlohmann::json& log,
+                                const std::string& name = "");
 
 /// Model file: {"format": "frictiond-actuator-model", "version": 1, "law":
 /// name, "params": {name: value, ...}, ...}.
