@@ -196,35 +196,41 @@ FitData Ingestor::AssembleFitData(PairLock& lock,
     CatchUp(pair, lock.material(), lock.fingertip());
   }
   FitData out;
-  // Copies: an upload that is gone leaves the index below.
-  const std::vector<std::int64_t> ids = pair.ids;
-  const std::vector<std::size_t> sizes = pair.sizes;
-  out.uploads_stored = static_cast<int>(ids.size());
+  out.uploads_stored = static_cast<int>(pair.ids.size());
   out.samples_stored = pair.samples_stored;
-  const FitChoice choice = SelectFitUploads(sizes, options_.fit_sample_cap);
+  const FitChoice choice =
+      SelectFitUploads(pair.sizes, options_.fit_sample_cap);
+  // The chosen uploads by id: an upload that is gone leaves the index below
+  // (positions shift; ids do not).
+  std::vector<std::int64_t> chosen;
+  chosen.reserve(choice.indices.size());
+  for (std::size_t i : choice.indices) chosen.push_back(pair.ids[i]);
   // A pair the cache shed keeps its index: read back only the chosen
   // uploads it no longer holds (a bounded refit reads a bounded number).
-  for (std::size_t i : choice.indices) {
-    if (pair.uploads.count(ids[i])) continue;
-    auto full = store_.GetStroke(ids[i]);
+  for (std::int64_t id : chosen) {
+    if (pair.uploads.count(id)) continue;
+    auto full = store_.GetStroke(id);
     ++store_reads_;
-    if (!full || !Cache(pair, ids[i], full->csv)) {
+    if (!full || !Cache(pair, id, full->csv)) {
       // Gone or unreadable now: it leaves the index.
-      const auto at =
-          std::lower_bound(pair.ids.begin(), pair.ids.end(), ids[i]);
-      pair.samples_stored -= sizes[i];
-      pair.sizes.erase(pair.sizes.begin() + (at - pair.ids.begin()));
+      const auto at = std::lower_bound(pair.ids.begin(), pair.ids.end(), id);
+      const auto k = at - pair.ids.begin();
+      pair.samples_stored -= pair.sizes[static_cast<std::size_t>(k)];
+      pair.sizes.erase(pair.sizes.begin() + k);
       pair.ids.erase(at);
     }
   }
   std::size_t reserve = upload.size();
-  for (std::size_t i : choice.indices) reserve += sizes[i];
+  for (std::int64_t id : chosen) {
+    auto it = pair.uploads.find(id);
+    if (it != pair.uploads.end()) reserve += it->second.size();
+  }
   out.strokes.Reserve(reserve);
-  for (std::size_t i : choice.indices) {
-    auto it = pair.uploads.find(ids[i]);
+  for (std::int64_t id : chosen) {
+    auto it = pair.uploads.find(id);
     if (it == pair.uploads.end()) continue;
     out.strokes.Append(it->second);
-    out.samples_used += sizes[i];
+    out.samples_used += it->second.size();
     ++out.uploads_used;
   }
   if (out.strokes.empty()) {
