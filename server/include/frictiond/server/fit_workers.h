@@ -18,11 +18,11 @@
 /// waiting for it cost more than the share saved). Splitting costs CPU (the
 /// shares' start and hand-over, two threads' caches), which pays while a
 /// core is idle and is pure loss when every core already serves an upload.
-/// Measured (bench/upload, 2 hardware threads, daemon over HTTP): counting
-/// refits only, two clients on two materials 690-860 uploads/s; never
-/// splitting 875-888 with one client 503-557 and in-process one client
-/// 550 instead of 640-660 uploads/s; counting uploads: see fit_workers.cc's
-/// commit and docs/architecture.md.
+/// Measured (bench/upload, 2 hardware threads, daemon over HTTP; details in
+/// docs/ingest.md): counting refits only, two clients on two materials made
+/// 690-857 uploads/s; never splitting 875-888, but in-process one client
+/// 550 instead of 640-660; counting uploads (this rule) 808-906 with one
+/// client at 548-588, as fast as before.
 ///
 /// @code
 ///   FitWorkers workers(2);
@@ -65,6 +65,7 @@ class FitWorkers {
     /// Whether this upload's refit should post its second share now: true
     /// when at most threads/2 uploads are in flight, this one included.
     /// Ask when the refit starts (another upload may have begun meanwhile).
+    /// Not on a moved-from Refit.
     bool split() const;
 
    private:
