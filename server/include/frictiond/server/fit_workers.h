@@ -18,11 +18,12 @@
 /// waiting for it cost more than the share saved). Splitting costs CPU (the
 /// shares' start and hand-over, two threads' caches), which pays while a
 /// core is idle and is pure loss when every core already serves an upload.
-/// Measured (bench/upload, 2 hardware threads, daemon over HTTP; details in
-/// docs/ingest.md): counting refits only, two clients on two materials made
-/// 734-783 uploads/s (run means); never splitting 875-888, but in-process one client
-/// 550 instead of 640-660; counting uploads (this rule) 808-888 (six runs'
-/// means) with one client at 548-584, as fast as before.
+/// Measured (bench/upload, 2 hardware threads, daemon over HTTP; details
+/// in docs/ingest.md): counting refits only, two clients on two materials
+/// made 734-783 uploads/s (run means); never splitting 875-888, but
+/// in-process one client 550 instead of 640-660; counting uploads (this
+/// rule) 808-888 (six runs' means) with one client at 548-584, as fast as
+/// before.
 ///
 /// @code
 ///   FitWorkers workers(2);
