@@ -31,6 +31,7 @@
 #include "frictiond/proto/lcm_codec.h"
 #include "frictiond/proto/lcm_signed.h"
 #include "frictiond/server/model_lookup.h"
+#include "frictiond/server/request_error.h"
 #include "frictiond/stroke_chunk_v1.hpp"
 #include "frictiond/stroke_chunk_v2.hpp"
 
@@ -747,8 +748,8 @@ class LcmEndpointImpl {
     ChunkOutcome outcome;
     try {
       outcome = reassembler_.Add(c, NowMonotonicS());
-    } catch (const std::invalid_argument& e) {
-      return reject(FieldNamedIn(e.what()), e.what());
+    } catch (const RequestError& e) {  // every rejection names its field
+      return reject(e.field(), e.what());
     }
     if (outcome == ChunkOutcome::kDuplicate) return;
     collector_.NoteReceiving(&*job, m.stroke, m.robot);

@@ -5,6 +5,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "frictiond/server/request_error.h"
+
 namespace frictiond {
 
 namespace {
@@ -18,11 +20,10 @@ std::string Num(double x) {
   return s.str();
 }
 
-[[noreturn]] void Reject(const std::string& field,
-                         const std::string& why,
-                         std::string* field_out) {
-  if (field_out) *field_out = field;
-  throw std::invalid_argument(field + why);
+// Every rejection of a chunk: the message starts with the field, and the
+// error carries it (a transport reads e.field(), not the text).
+[[noreturn]] void Reject(const std::string& field, const std::string& why) {
+  throw RequestError(StatusCode::kInvalidArgument, field, field + why);
 }
 
 }  // namespace
@@ -53,48 +54,39 @@ bool ReassemblerOptions::IsValid(std::string* why) const {
 }
 
 void ValidateStrokeChunk(const StrokeChunk& c,
-                         const ReassemblerOptions& options,
-                         std::string* field) {
+                         const ReassemblerOptions& options) {
   if (!(c.job_id > 0))
-    Reject(
-        "job_id", " = " + std::to_string(c.job_id) + " (must be > 0)", field);
+    Reject("job_id", " = " + std::to_string(c.job_id) + " (must be > 0)");
   if (c.stroke < 0)
-    Reject(
-        "stroke", " = " + std::to_string(c.stroke) + " (must be >= 0)", field);
+    Reject("stroke", " = " + std::to_string(c.stroke) + " (must be >= 0)");
   if (c.total_chunks < 0 || c.total_chunks > options.max_chunks)
     Reject("total_chunks",
            " = " + std::to_string(c.total_chunks) + " (must be in 0.." +
-               std::to_string(options.max_chunks) + ")",
-           field);
+               std::to_string(options.max_chunks) + ")");
   if (c.seq < 0 || c.seq >= options.max_chunks)
     Reject("seq",
            " = " + std::to_string(c.seq) + " (must be in 0.." +
-               std::to_string(options.max_chunks - 1) + ")",
-           field);
+               std::to_string(options.max_chunks - 1) + ")");
   if (c.total_chunks > 0 && c.seq >= c.total_chunks)
     Reject("seq",
            " = " + std::to_string(c.seq) + " (must be below total_chunks = " +
-               std::to_string(c.total_chunks) + ")",
-           field);
+               std::to_string(c.total_chunks) + ")");
   if (c.last && c.total_chunks > 0 && c.total_chunks != c.seq + 1)
     Reject("total_chunks",
            " = " + std::to_string(c.total_chunks) +
                " (the last chunk has seq " + std::to_string(c.seq) +
-               ", so it must be " + std::to_string(c.seq + 1) + ")",
-           field);
+               ", so it must be " + std::to_string(c.seq + 1) + ")");
   const std::size_t n = c.t_s.size();
-  if (n == 0) Reject("n_samples", " = 0 (must be >= 1)", field);
+  if (n == 0) Reject("n_samples", " = 0 (must be >= 1)");
   if (n > static_cast<std::size_t>(options.max_samples_per_chunk))
     Reject("n_samples",
            " = " + std::to_string(n) + " (at most " +
-               std::to_string(options.max_samples_per_chunk) + " per chunk)",
-           field);
+               std::to_string(options.max_samples_per_chunk) + " per chunk)");
   auto same_size = [&](const std::vector<double>& x, const char* name) {
     if (x.size() != n)
       Reject(name,
              ": " + std::to_string(x.size()) + " samples (t_s has " +
-                 std::to_string(n) + "; all columns must have n_samples)",
-             field);
+                 std::to_string(n) + "; all columns must have n_samples)");
   };
   same_size(c.fn_n, "fn_n");
   same_size(c.ft_n, "ft_n");
@@ -107,8 +99,7 @@ void ValidateStrokeChunk(const StrokeChunk& c,
                                c.v_mm_s[i],
                                i > 0 ? c.t_s[i - 1] : -kInf)) {
       Reject(bad->field + "[" + std::to_string(i) + "]",
-             " = " + Num(bad->value) + " (" + bad->rule + ")",
-             field);
+             " = " + Num(bad->value) + " (" + bad->rule + ")");
     }
   }
 }
@@ -149,10 +140,10 @@ ChunkOutcome StrokeReassembler::Add(const StrokeChunk& chunk, double now_s) {
   const int chunk_total = chunk.last ? chunk.seq + 1 : chunk.total_chunks;
   if (it == strokes_.end()) {
     if (static_cast<int>(strokes_.size()) >= options_.max_open_strokes)
-      throw std::invalid_argument(
-          "stroke: " + std::to_string(strokes_.size()) +
-          " strokes are already being reassembled (at most " +
-          std::to_string(options_.max_open_strokes) + ")");
+      Reject("stroke",
+             ": " + std::to_string(strokes_.size()) +
+                 " strokes are already being reassembled (at most " +
+                 std::to_string(options_.max_open_strokes) + ")");
   } else {
     const Partial& p = it->second;
     if (auto dup = p.chunks.find(chunk.seq); dup != p.chunks.end()) {
@@ -160,35 +151,35 @@ ChunkOutcome StrokeReassembler::Add(const StrokeChunk& chunk, double now_s) {
       if (old.t_s == chunk.t_s && old.fn_n == chunk.fn_n &&
           old.ft_n == chunk.ft_n && old.v_mm_s == chunk.v_mm_s)
         return ChunkOutcome::kDuplicate;
-      throw std::invalid_argument(
-          "seq = " + std::to_string(chunk.seq) +
-          " (resent with different samples than the first copy)");
+      Reject("seq",
+             " = " + std::to_string(chunk.seq) +
+                 " (resent with different samples than the first copy)");
     }
     if (p.total > 0 && chunk_total > 0 && chunk_total != p.total)
-      throw std::invalid_argument(
-          "total_chunks = " + std::to_string(chunk_total) +
-          " (earlier chunks of this stroke said " + std::to_string(p.total) +
-          ")");
+      Reject("total_chunks",
+             " = " + std::to_string(chunk_total) +
+                 " (earlier chunks of this stroke said " +
+                 std::to_string(p.total) + ")");
     if (p.total > 0 && chunk.seq >= p.total)
-      throw std::invalid_argument("seq = " + std::to_string(chunk.seq) +
-                                  " (the stroke has " +
-                                  std::to_string(p.total) + " chunks)");
+      Reject("seq",
+             " = " + std::to_string(chunk.seq) + " (the stroke has " +
+                 std::to_string(p.total) + " chunks)");
     if (chunk_total > 0 && !p.chunks.empty() &&
         p.chunks.rbegin()->first >= chunk_total)
-      throw std::invalid_argument(
-          "total_chunks = " + std::to_string(chunk_total) +
-          " (a chunk with seq " + std::to_string(p.chunks.rbegin()->first) +
-          " was already received)");
+      Reject("total_chunks",
+             " = " + std::to_string(chunk_total) + " (a chunk with seq " +
+                 std::to_string(p.chunks.rbegin()->first) +
+                 " was already received)");
     if (p.samples + chunk.t_s.size() > options_.max_samples)
-      throw std::invalid_argument("n_samples: the stroke would exceed " +
-                                  std::to_string(options_.max_samples) +
-                                  " samples");
+      Reject("n_samples",
+             ": the stroke would exceed " +
+                 std::to_string(options_.max_samples) + " samples");
   }
   if (total_samples_ + chunk.t_s.size() > options_.max_total_samples)
-    throw std::invalid_argument(
-        "n_samples: the strokes being reassembled would exceed " +
-        std::to_string(options_.max_total_samples) +
-        " samples in all (retry when they are complete)");
+    Reject("n_samples",
+           ": the strokes being reassembled would exceed " +
+               std::to_string(options_.max_total_samples) +
+               " samples in all (retry when they are complete)");
   Partial& p = strokes_[key];
   if (chunk_total > 0) p.total = chunk_total;
   p.samples += chunk.t_s.size();
@@ -218,10 +209,10 @@ StrokeData StrokeReassembler::Take(const StrokeKey& key) {
   double last_t = -INFINITY;
   for (const auto& [seq, c] : p.chunks) {
     if (c.t_s.front() < last_t)
-      throw std::invalid_argument("t_s: chunk " + std::to_string(seq) +
-                                  " starts at " + Num(c.t_s.front()) +
-                                  " s, before the previous chunk ends (" +
-                                  Num(last_t) + " s)");
+      Reject("t_s",
+             ": chunk " + std::to_string(seq) + " starts at " +
+                 Num(c.t_s.front()) + " s, before the previous chunk ends (" +
+                 Num(last_t) + " s)");
     last_t = c.t_s.back();
     d.t_s.insert(d.t_s.end(), c.t_s.begin(), c.t_s.end());
     d.fn_n.insert(d.fn_n.end(), c.fn_n.begin(), c.fn_n.end());

@@ -1,5 +1,6 @@
 #include "frictiond/server/stroke_reassembler.h"
 
+#include <functional>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -160,6 +161,44 @@ TEST(StrokeReassembler, TimeGoingBackwardsAcrossChunksIsRejected) {
   r.Add(a, 0);
   ASSERT_EQ(r.Add(b, 0), ChunkOutcome::kComplete);
   EXPECT_THROW(r.Take({7, 0}), std::invalid_argument);
+}
+
+// Every rejection carries its field as data (what the LCM endpoint sends in
+// error_v1), equal to the start of its message.
+TEST(StrokeReassembler, RejectionsCarryTheirField) {
+  auto field_of = [](const std::function<void()>& f) -> std::string {
+    try {
+      f();
+    } catch (const RequestError& e) {
+      EXPECT_EQ(std::string(e.what()).rfind(e.field(), 0), 0u) << e.what();
+      EXPECT_EQ(e.code(), StatusCode::kInvalidArgument);
+      return e.field();
+    }
+    return "(no error)";
+  };
+  StrokeChunk bad = MakeChunk(0, 2);
+  bad.fn_n[3] = -1;
+  EXPECT_EQ(field_of([&] { ValidateStrokeChunk(bad, ReassemblerOptions{}); }),
+            "fn_n[3]");
+  StrokeReassembler r;
+  r.Add(MakeChunk(0, 3), 0.0);
+  StrokeChunk changed = MakeChunk(0, 3);
+  changed.ft_n[2] = 0.7;
+  EXPECT_EQ(field_of([&] { r.Add(changed, 0.1); }), "seq");
+  EXPECT_EQ(field_of([&] { r.Add(MakeChunk(1, 0, /*last=*/true), 0.1); }),
+            "total_chunks");
+  ReassemblerOptions small;
+  small.max_samples = 12;
+  StrokeReassembler s(small);
+  s.Add(MakeChunk(0, 3), 0.0);
+  s.Add(MakeChunk(1, 3), 0.0);
+  EXPECT_EQ(field_of([&] { s.Add(MakeChunk(2, 3), 0.0); }), "n_samples");
+  StrokeReassembler t;
+  StrokeChunk b = MakeChunk(1, 2);
+  for (double& x : b.t_s) x -= 0.03;
+  t.Add(MakeChunk(0, 2), 0);
+  t.Add(b, 0);
+  EXPECT_EQ(field_of([&] { t.Take({7, 0}); }), "t_s");
 }
 
 TEST(ValidateStrokeChunk, NamesTheBadField) {

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "frictiond/estimators/stroke_data.h"
+#include "frictiond/server/request_error.h"
 
 namespace frictiond {
 
@@ -53,11 +54,11 @@ struct ReassemblerOptions {
 
 /// Checks one chunk's fields against the CSV rules (finite numbers,
 /// fn_n > 0, ft_n >= 0, v_mm_s >= 0, t_s not decreasing within the chunk)
-/// and the limits. @throws std::invalid_argument whose message starts with
-/// the field ("fn_n[12] = -1 (must be > 0)"); *field gets the field name.
+/// and the limits. @throws RequestError (kInvalidArgument, a
+/// std::invalid_argument) whose field() is the field and whose message
+/// starts with it ("fn_n[12] = -1 (must be > 0)").
 void ValidateStrokeChunk(const StrokeChunk& chunk,
-                         const ReassemblerOptions& options,
-                         std::string* field = nullptr);
+                         const ReassemblerOptions& options);
 
 /// Identifies a stroke under reassembly.
 struct StrokeKey {
@@ -104,7 +105,7 @@ class StrokeReassembler {
   explicit StrokeReassembler(ReassemblerOptions options = {});
 
   /// Validates and stores a chunk.
-  /// @throws std::invalid_argument naming the field (see
+  /// @throws RequestError naming the field (see
   /// ValidateStrokeChunk; also: total_chunks changed, seq beyond the total,
   /// a resent seq with different samples, too many open strokes or samples,
   /// t_s going backwards across chunks); nothing of the chunk is kept then.
@@ -114,7 +115,9 @@ class StrokeReassembler {
   std::optional<StrokeProgress> Progress(const StrokeKey& key) const;
 
   /// Removes a complete stroke and returns its samples in seq order.
-  /// @throws std::logic_error when the stroke is not complete.
+  /// @throws std::logic_error when the stroke is not complete;
+  /// RequestError naming t_s when a chunk starts before the previous one
+  /// ends.
   StrokeData Take(const StrokeKey& key);
 
   /// Drops a stroke (e.g. its job failed). @return false when not held.
