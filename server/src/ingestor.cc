@@ -220,19 +220,18 @@ FitData Ingestor::AssembleFitData(PairLock& lock,
       pair.ids.erase(at);
     }
   }
-  std::size_t reserve = upload.size();
-  for (std::int64_t id : chosen) {
-    auto it = pair.uploads.find(id);
-    if (it != pair.uploads.end()) reserve += it->second.size();
-  }
-  out.strokes.Reserve(reserve);
+  // The chosen uploads still held, found once each.
+  std::vector<const StrokeData*> parts;
+  parts.reserve(chosen.size());
   for (std::int64_t id : chosen) {
     auto it = pair.uploads.find(id);
     if (it == pair.uploads.end()) continue;
-    out.strokes.Append(it->second);
+    parts.push_back(&it->second);
     out.samples_used += it->second.size();
-    ++out.uploads_used;
   }
+  out.uploads_used = static_cast<int>(parts.size());
+  out.strokes.Reserve(upload.size() + out.samples_used);
+  for (const StrokeData* part : parts) out.strokes.Append(*part);
   if (out.strokes.empty()) {
     out.strokes = upload;  // first upload of the pair: no merge needed
   } else {
