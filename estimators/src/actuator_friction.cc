@@ -4,6 +4,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "frictiond/estimators/field_error.h"
 #include "frictiond/estimators/joint_friction.h"
 
 namespace frictiond {
@@ -48,8 +49,7 @@ ActuatorFrictionLaw ParseActuatorFrictionLaw(const std::string& name) {
   std::string all;
   for (const LawName& n : kLawNames)
     all += std::string(all.empty() ? "" : ", ") + n.name;
-  throw std::invalid_argument("law = '" + name + "' (must be one of " + all +
-                              ")");
+  throw FieldError("law", "law = '" + name + "' (must be one of " + all + ")");
 }
 
 double ActuatorFrictionBudget::TotalNm(double dq_rad_s) const {

@@ -6,6 +6,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include "frictiond/estimators/field_error.h"
+
 namespace frictiond {
 
 namespace {
@@ -35,7 +37,7 @@ void Require(bool ok,
              double value,
              const std::string& rule) {
   if (!ok)
-    throw std::invalid_argument(field + " = " + Num(value) + " (" + rule + ")");
+    throw FieldError(field, field + " = " + Num(value) + " (" + rule + ")");
 }
 
 }  // namespace
@@ -121,19 +123,43 @@ MixedFrictionTheta MakeMixedFrictionTheta(double f_s,
   return t;
 }
 
-bool IsValidMixedFrictionTheta(const MixedFrictionTheta& t, std::string* why) {
-  auto fail = [&](const std::string& m) {
-    if (why) *why = m;
+namespace {
+
+// The rule of IsValidMixedFrictionTheta; on failure, the field at fault
+// and the message.
+bool CheckTheta(const MixedFrictionTheta& t,
+                std::string* field,
+                std::string* why) {
+  auto fail = [&](const char* f, const std::string& m) {
+    *field = f;
+    *why = m;
     return false;
   };
-  if (!t.allFinite()) return fail("theta has a non-finite entry");
-  if (!(t[1] >= 0)) return fail("f_l = " + Num(t[1]) + " (must be >= 0)");
+  if (!t.allFinite()) return fail("theta", "theta has a non-finite entry");
+  if (!(t[1] >= 0))
+    return fail("f_l", "f_l = " + Num(t[1]) + " (must be >= 0)");
   if (!(t[0] >= t[1]))
-    return fail("f_s = " + Num(t[0]) + " (must be >= f_l = " + Num(t[1]) + ")");
-  if (!(t[2] > 0)) return fail("d_ref_um = " + Num(t[2]) + " (must be > 0)");
+    return fail("f_s",
+                "f_s = " + Num(t[0]) + " (must be >= f_l = " + Num(t[1]) + ")");
+  if (!(t[2] > 0))
+    return fail("d_ref_um", "d_ref_um = " + Num(t[2]) + " (must be > 0)");
   if (!(t[3] > 0 && t[3] <= 3))
-    return fail("n = " + Num(t[3]) + " (must be in (0, 3])");
+    return fail("n", "n = " + Num(t[3]) + " (must be in (0, 3])");
   return true;
+}
+
+void RequireValidTheta(const MixedFrictionTheta& t) {
+  std::string field, why;
+  if (!CheckTheta(t, &field, &why)) throw FieldError(field, why);
+}
+
+}  // namespace
+
+bool IsValidMixedFrictionTheta(const MixedFrictionTheta& t, std::string* why) {
+  std::string field, message;
+  if (CheckTheta(t, &field, &message)) return true;
+  if (why) *why = message;
+  return false;
 }
 
 double CalcFilmThicknessUm(const MixedFrictionTheta& theta,
@@ -398,8 +424,7 @@ MixedFrictionTable::MixedFrictionTable(const MixedFrictionTheta& theta,
                                        const Lubricant& lubricant,
                                        const JointContact& contact)
     : theta_(theta), surface_(surface) {
-  std::string why;
-  if (!IsValidMixedFrictionTheta(theta, &why)) throw std::invalid_argument(why);
+  RequireValidTheta(theta);
   ValidateSurface(surface);
   ValidateLubricant(lubricant);
   Require(contact.area_mm2 > 0 && std::isfinite(contact.area_mm2),
@@ -548,8 +573,7 @@ std::vector<WearPoint> PredictWearDrift(const MixedFrictionTheta& theta,
                                         double load_n,
                                         double distance_mm,
                                         int points) {
-  std::string why;
-  if (!IsValidMixedFrictionTheta(theta, &why)) throw std::invalid_argument(why);
+  RequireValidTheta(theta);
   ValidateSurface(surface);
   Require(wear.k_solid >= 0 && std::isfinite(wear.k_solid),
           "k_solid",

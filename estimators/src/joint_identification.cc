@@ -11,6 +11,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
+#include "frictiond/estimators/field_error.h"
 #include "frictiond/estimators/least_squares.h"
 #include "frictiond/estimators/lugre.h"
 
@@ -106,9 +107,9 @@ void ValidateJointData(const JointData& d) {
   const std::size_t n = d.mu.size();
   auto same = [&](std::size_t m, const char* name) {
     if (m != n)
-      throw std::invalid_argument(std::string(name) + " has " +
-                                  std::to_string(m) + " samples, mu has " +
-                                  std::to_string(n));
+      throw FieldError(name,
+                       std::string(name) + " has " + std::to_string(m) +
+                           " samples, mu has " + std::to_string(n));
   };
   same(d.v_mm_s.size(), "v_mm_s");
   same(d.load_n.size(), "load_n");
@@ -116,8 +117,9 @@ void ValidateJointData(const JointData& d) {
   if (!d.temp_c.empty()) same(d.temp_c.size(), "temp_c");
   for (std::size_t i = 0; i < n; ++i) {
     auto bad = [&](const char* field, double x, const char* rule) {
-      throw std::invalid_argument("sample " + std::to_string(i) + ": " + field +
-                                  " = " + Num(x) + " (" + rule + ")");
+      throw FieldError(field,
+                       "sample " + std::to_string(i) + ": " + field + " = " +
+                           Num(x) + " (" + rule + ")");
     };
     if (!(d.v_mm_s[i] > 0 && std::isfinite(d.v_mm_s[i])))
       bad("v_mm_s", d.v_mm_s[i], "must be > 0 and finite");

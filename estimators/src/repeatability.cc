@@ -9,6 +9,7 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
+#include "frictiond/estimators/field_error.h"
 #include "frictiond/estimators/least_squares.h"
 
 namespace frictiond {
@@ -115,30 +116,32 @@ int RunPositionIk(const SerialArm& arm,
 
 void ValidateArm(const SerialArm& arm) {
   if (arm.joints.empty() || arm.joints.size() > 32)
-    throw std::invalid_argument("joints has " +
-                                std::to_string(arm.joints.size()) +
-                                " entries (must be 1..32)");
+    throw FieldError("joints",
+                     "joints has " + std::to_string(arm.joints.size()) +
+                         " entries (must be 1..32)");
   for (std::size_t i = 0; i < arm.joints.size(); ++i) {
     const DhJoint& j = arm.joints[i];
     const std::string at = "joints[" + std::to_string(i) + "].";
     auto finite = [&](double x, const char* f) {
       if (!std::isfinite(x))
-        throw std::invalid_argument(at + f + " = " + Num(x) +
-                                    " (must be finite)");
+        throw FieldError(at + f, at + f + " = " + Num(x) + " (must be finite)");
     };
     finite(j.a_mm, "a_mm");
     finite(j.alpha_rad, "alpha");
     finite(j.d_mm, "d_mm");
     finite(j.theta_rad, "theta");
     if (!(j.stiffness > 0 && std::isfinite(j.stiffness)))
-      throw std::invalid_argument(at + "stiffness = " + Num(j.stiffness) +
-                                  " (must be > 0)");
+      throw FieldError(
+          at + "stiffness",
+          at + "stiffness = " + Num(j.stiffness) + " (must be > 0)");
     if (!(j.sigma_tau >= 0 && std::isfinite(j.sigma_tau)))
-      throw std::invalid_argument(at + "sigma_tau = " + Num(j.sigma_tau) +
-                                  " (must be >= 0)");
+      throw FieldError(
+          at + "sigma_tau",
+          at + "sigma_tau = " + Num(j.sigma_tau) + " (must be >= 0)");
     if (!(j.q_min <= j.q_max))
-      throw std::invalid_argument(at + "q_min = " + Num(j.q_min) +
-                                  " (must be <= q_max = " + Num(j.q_max) + ")");
+      throw FieldError(at + "q_min",
+                       at + "q_min = " + Num(j.q_min) +
+                           " (must be <= q_max = " + Num(j.q_max) + ")");
   }
 }
 

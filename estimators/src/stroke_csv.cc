@@ -14,10 +14,10 @@ StrokeCsvError::StrokeCsvError(std::size_t line,
                                std::string field,
                                const std::string& message,
                                bool too_large)
-    : std::invalid_argument(
+    : FieldError(
+          std::move(field),
           line > 0 ? "line " + std::to_string(line) + ": " + message : message),
       line_(line),
-      field_(std::move(field)),
       too_large_(too_large) {}
 
 namespace {

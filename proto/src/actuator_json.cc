@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "frictiond/estimators/actuator_friction.h"
+#include "frictiond/estimators/field_error.h"
 #include "frictiond/proto/json_parse.h"
 
 namespace frictiond {
@@ -25,10 +26,11 @@ std::string Num(double x) {
 
 json ParseBounded(std::string_view text, const char* what) {
   if (text.size() > kMaxActuatorLogBytes)
-    throw std::invalid_argument(std::string(what) + ": " +
-                                std::to_string(text.size()) + " bytes (limit " +
-                                std::to_string(kMaxActuatorLogBytes) + ")");
-  if (text.empty()) throw std::invalid_argument(std::string(what) + ": empty");
+    throw FieldError(what,
+                     std::string(what) + ": " + std::to_string(text.size()) +
+                         " bytes (limit " +
+                         std::to_string(kMaxActuatorLogBytes) + ")");
+  if (text.empty()) throw FieldError(what, std::string(what) + ": empty");
   return ParseJson(text, what, kMaxDepth);
 }
 
@@ -36,12 +38,11 @@ double Number(const json& obj,
               const std::string& key,
               const std::string& field) {
   const auto it = obj.find(key);
-  if (it == obj.end()) throw std::invalid_argument(field + ": missing");
-  if (!it->is_number())
-    throw std::invalid_argument(field + ": must be a number");
+  if (it == obj.end()) throw FieldError(field, field + ": missing");
+  if (!it->is_number()) throw FieldError(field, field + ": must be a number");
   const double v = it->get<double>();
   if (!std::isfinite(v))
-    throw std::invalid_argument(field + " = " + Num(v) + " (must be finite)");
+    throw FieldError(field, field + " = " + Num(v) + " (must be finite)");
   return v;
 }
 
@@ -60,7 +61,7 @@ ActuatorLog ParseActuatorLog(std::string_view text, const std::string& name) {
 }
 
 ActuatorLog ActuatorLogFromJson(const json& j, const std::string& name) {
-  if (!j.is_object()) throw std::invalid_argument("log: must be a JSON object");
+  if (!j.is_object()) throw FieldError("log", "log: must be a JSON object");
   ActuatorLog log;
   log.name = name;
   log.motor = Text(j, "motor");
@@ -72,13 +73,14 @@ ActuatorLog ActuatorLogFromJson(const json& j, const std::string& name) {
   const bool has_dt = j.contains("dt");
   if (has_dt) log.dt_s = Number(j, "dt", "dt");
   const auto e = j.find("entries");
-  if (e == j.end()) throw std::invalid_argument("entries: missing");
-  if (!e->is_array()) throw std::invalid_argument("entries: must be an array");
+  if (e == j.end()) throw FieldError("entries", "entries: missing");
+  if (!e->is_array()) throw FieldError("entries", "entries: must be an array");
   const std::size_t n = e->size();
-  if (n == 0) throw std::invalid_argument("entries: empty");
+  if (n == 0) throw FieldError("entries", "entries: empty");
   if (n > kMaxActuatorLogEntries)
-    throw std::invalid_argument("entries: " + std::to_string(n) + " (limit " +
-                                std::to_string(kMaxActuatorLogEntries) + ")");
+    throw FieldError("entries",
+                     "entries: " + std::to_string(n) + " (limit " +
+                         std::to_string(kMaxActuatorLogEntries) + ")");
   log.t_s.reserve(n);
   log.q_rad.reserve(n);
   log.dq_rad_s.reserve(n);
@@ -89,15 +91,16 @@ ActuatorLog ActuatorLogFromJson(const json& j, const std::string& name) {
   for (std::size_t i = 0; i < n; ++i) {
     const json& x = (*e)[i];
     const std::string f = "entries[" + std::to_string(i) + "]";
-    if (!x.is_object()) throw std::invalid_argument(f + ": must be an object");
+    if (!x.is_object()) throw FieldError(f, f + ": must be an object");
     log.t_s.push_back(Number(x, "timestamp", f + ".timestamp"));
     log.q_rad.push_back(Number(x, "position", f + ".position"));
     log.goal_rad.push_back(Number(x, "goal_position", f + ".goal_position"));
     const auto te = x.find("torque_enable");
     if (te == x.end())
-      throw std::invalid_argument(f + ".torque_enable: missing");
+      throw FieldError(f + ".torque_enable", f + ".torque_enable: missing");
     if (!te->is_boolean())
-      throw std::invalid_argument(f + ".torque_enable: must be true or false");
+      throw FieldError(f + ".torque_enable",
+                       f + ".torque_enable: must be true or false");
     log.torque_enable.push_back(te->get<bool>() ? 1 : 0);
     if (i == 0) has_speed = x.contains("speed");
     log.dq_rad_s.push_back(has_speed ? Number(x, "speed", f + ".speed") : 0.0);
@@ -106,9 +109,10 @@ ActuatorLog ActuatorLogFromJson(const json& j, const std::string& name) {
   }
   for (std::size_t i = 1; i < n; ++i)
     if (!(log.t_s[i] > log.t_s[i - 1]))
-      throw std::invalid_argument(
+      throw FieldError(
+          "entries[" + std::to_string(i) + "].timestamp",
           "entries[" + std::to_string(i) + "].timestamp = " + Num(log.t_s[i]) +
-          " (must be > the previous " + Num(log.t_s[i - 1]) + ")");
+              " (must be > the previous " + Num(log.t_s[i - 1]) + ")");
   if (!has_dt && n >= 2) {
     std::vector<double> steps(n - 1);
     for (std::size_t i = 1; i < n; ++i)
@@ -141,15 +145,15 @@ json ActuatorModelToJson(const ActuatorModel& model) {
 }
 
 ActuatorModel ActuatorModelFromJson(const json& j) {
-  if (!j.is_object()) throw std::invalid_argument("model: must be an object");
+  if (!j.is_object()) throw FieldError("model", "model: must be an object");
   const auto law = j.find("law");
   if (law == j.end() || !law->is_string())
-    throw std::invalid_argument("law: missing or not a string");
+    throw FieldError("law", "law: missing or not a string");
   ActuatorModel m = MakeDefaultActuatorModel(
       ParseActuatorFrictionLaw(law->get<std::string>()));
   const auto params = j.find("params");
   if (params == j.end() || !params->is_object())
-    throw std::invalid_argument("params: missing or not an object");
+    throw FieldError("params", "params: missing or not an object");
   for (int i = 0; i < static_cast<int>(ActuatorParam::kCount); ++i) {
     const auto p = static_cast<ActuatorParam>(i);
     const ActuatorParamInfo& info = GetActuatorParamInfo(p);
@@ -157,9 +161,10 @@ ActuatorModel ActuatorModelFromJson(const json& j) {
     const double v =
         Number(*params, info.name, std::string("params.") + info.name);
     if (!(v >= info.lo && v <= info.hi))
-      throw std::invalid_argument(std::string("params.") + info.name + " = " +
-                                  Num(v) + " (must be in [" + Num(info.lo) +
-                                  ", " + Num(info.hi) + "])");
+      throw FieldError(std::string("params.") + info.name,
+                       std::string("params.") + info.name + " = " + Num(v) +
+                           " (must be in [" + Num(info.lo) + ", " +
+                           Num(info.hi) + "])");
     ActuatorParamRef(m, p) = v;
   }
   return m;
@@ -167,7 +172,7 @@ ActuatorModel ActuatorModelFromJson(const json& j) {
 
 ActuatorModel ParseBamParams(std::string_view text) {
   const json j = ParseBounded(text, "params");
-  if (!j.is_object()) throw std::invalid_argument("params: must be an object");
+  if (!j.is_object()) throw FieldError("params", "params: must be an object");
   const std::string model = Text(j, "model");
   ActuatorFrictionLaw law;
   if (model == "m1")
@@ -181,8 +186,9 @@ ActuatorModel ParseBamParams(std::string_view text) {
   else if (model == "m6")
     law = ActuatorFrictionLaw::kBamM6;
   else
-    throw std::invalid_argument("model = '" + model +
-                                "' (must be one of m1, m2, m3, m4, m5, m6)");
+    throw FieldError(
+        "model",
+        "model = '" + model + "' (must be one of m1, m2, m3, m4, m5, m6)");
   ActuatorModel m = MakeDefaultActuatorModel(law);
   // Zero every friction term first: a BAM file lists only its model's.
   m.friction = ActuatorFrictionParams{};
@@ -197,12 +203,12 @@ ActuatorModel ParseBamParams(std::string_view text) {
     ActuatorParamRef(m, p) = v;
   }
   if (!(m.kt > 0))
-    throw std::invalid_argument("kt = " + Num(m.kt) + " (must be > 0)");
+    throw FieldError("kt", "kt = " + Num(m.kt) + " (must be > 0)");
   if (!(m.r_ohm > 0))
-    throw std::invalid_argument("R = " + Num(m.r_ohm) + " (must be > 0)");
+    throw FieldError("R", "R = " + Num(m.r_ohm) + " (must be > 0)");
   if (!(m.armature_kg_m2 >= 0))
-    throw std::invalid_argument("armature = " + Num(m.armature_kg_m2) +
-                                " (must be >= 0)");
+    throw FieldError("armature",
+                     "armature = " + Num(m.armature_kg_m2) + " (must be >= 0)");
   if (model == "m3" || model == "m4") {
     // BAM's M3 has no Stribeck term; M4 does (load_friction_stribeck).
     if (model == "m3") m.friction.friction_stribeck = 0;

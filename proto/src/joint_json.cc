@@ -7,6 +7,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "frictiond/estimators/field_error.h"
+
 namespace frictiond {
 
 using nlohmann::json;
@@ -23,7 +25,7 @@ std::string Num(double x) {
 }
 
 [[noreturn]] void Bad(const std::string& field, const std::string& why) {
-  throw std::invalid_argument(field + ": " + why);
+  throw FieldError(field, field + ": " + why);
 }
 
 // Reads an optional number at j[key] into *x (kept when absent).
@@ -45,13 +47,13 @@ double RequireNumber(const json& j, const char* key, const std::string& where) {
   return x;
 }
 
-// Re-throws a validator's message with a prefix ("surface." etc).
+// Re-throws a validator's error with a prefix ("surface." etc).
 template <typename F>
 void Prefixed(const std::string& prefix, F&& f) {
   try {
     f();
-  } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument(prefix + e.what());
+  } catch (const FieldError& e) {
+    throw e.Prefixed(prefix);
   }
 }
 
@@ -206,7 +208,8 @@ void JointConfigFromJson(const json& j, JointConfig* c, WearParams* w) {
     Number(j["contact"], "area_mm2", "contact.", &c->contact.area_mm2);
   }
   if (!(c->contact.area_mm2 > 0))
-    throw std::invalid_argument(
+    throw FieldError(
+        "contact.area_mm2",
         "contact.area_mm2 = " + Num(c->contact.area_mm2) + " (must be > 0)");
   if (j.contains("lubricant")) {
     const json& l = j["lubricant"];
@@ -223,11 +226,12 @@ void JointConfigFromJson(const json& j, JointConfig* c, WearParams* w) {
     Number(x, "hardness_mpa", "wear.", &w->hardness_mpa);
   }
   if (!(w->k_solid >= 0))
-    throw std::invalid_argument("wear.k_solid = " + Num(w->k_solid) +
-                                " (must be >= 0)");
+    throw FieldError("wear.k_solid",
+                     "wear.k_solid = " + Num(w->k_solid) + " (must be >= 0)");
   if (!(w->hardness_mpa > 0))
-    throw std::invalid_argument("wear.hardness_mpa = " + Num(w->hardness_mpa) +
-                                " (must be > 0)");
+    throw FieldError(
+        "wear.hardness_mpa",
+        "wear.hardness_mpa = " + Num(w->hardness_mpa) + " (must be > 0)");
 }
 
 json JointFamilyToJson(const JointFamily& f) {
@@ -303,7 +307,7 @@ JointData ParseJointCsv(const std::string& text,
     header = split(line);
     break;
   }
-  if (header.empty()) throw std::invalid_argument("no header row");
+  if (header.empty()) throw FieldError("header", "no header row");
   auto col = [&](const char* name) -> int {
     for (std::size_t i = 0; i < header.size(); ++i)
       if (header[i] == name) return static_cast<int>(i);
@@ -315,11 +319,11 @@ JointData ParseJointCsv(const std::string& text,
                          {c_load, "load_n"},
                          {c_mu, "mu"}})
     if (c < 0)
-      throw std::invalid_argument(std::string(name) +
-                                  ": required column is missing");
+      throw FieldError(name,
+                       std::string(name) + ": required column is missing");
   if (c_t < 0 && c_eta < 0)
-    throw std::invalid_argument(
-        "temp_c: column is missing (temp_c or eta_pa_s is required)");
+    throw FieldError(
+        "temp_c", "temp_c: column is missing (temp_c or eta_pa_s is required)");
   ValidateLubricant(lubricant);
   JointData d;
   while (std::getline(in, line)) {
@@ -327,31 +331,33 @@ JointData ParseJointCsv(const std::string& text,
     const auto first = line.find_first_not_of(" \t\r");
     if (first == std::string::npos || line[first] == '#') continue;
     if (d.size() >= max_rows)
-      throw std::invalid_argument("more than " + std::to_string(max_rows) +
-                                  " rows");
+      throw FieldError("body",
+                       "more than " + std::to_string(max_rows) + " rows");
     const auto cells = split(line);
     if (cells.size() != header.size())
-      throw std::invalid_argument("line " + std::to_string(line_no) + ": " +
-                                  std::to_string(cells.size()) +
-                                  " cells, header has " +
-                                  std::to_string(header.size()));
+      throw FieldError("body",
+                       "line " + std::to_string(line_no) + ": " +
+                           std::to_string(cells.size()) +
+                           " cells, header has " +
+                           std::to_string(header.size()));
     auto cell = [&](int c) {
       const std::string& s = cells[static_cast<std::size_t>(c)];
       char* end = nullptr;
       const double x = std::strtod(s.c_str(), &end);
       if (s.empty() || end != s.c_str() + s.size() || !std::isfinite(x))
-        throw std::invalid_argument("line " + std::to_string(line_no) + ": " +
-                                    header[static_cast<std::size_t>(c)] +
-                                    " = '" + s.substr(0, 32) +
-                                    "' (must be a finite number)");
+        throw FieldError(header[static_cast<std::size_t>(c)],
+                         "line " + std::to_string(line_no) + ": " +
+                             header[static_cast<std::size_t>(c)] + " = '" +
+                             s.substr(0, 32) + "' (must be a finite number)");
       return x;
     };
     auto positive = [&](int c) {
       const double x = cell(c);
       if (!(x > 0))
-        throw std::invalid_argument("line " + std::to_string(line_no) + ": " +
-                                    header[static_cast<std::size_t>(c)] +
-                                    " = " + Num(x) + " (must be > 0)");
+        throw FieldError(header[static_cast<std::size_t>(c)],
+                         "line " + std::to_string(line_no) + ": " +
+                             header[static_cast<std::size_t>(c)] + " = " +
+                             Num(x) + " (must be > 0)");
       return x;
     };
     d.v_mm_s.push_back(positive(c_v));
@@ -363,13 +369,14 @@ JointData ParseJointCsv(const std::string& text,
     } else {
       const double eta = CalcViscosity(lubricant, d.temp_c.back());
       if (!(eta > 0 && std::isfinite(eta)))
-        throw std::invalid_argument("line " + std::to_string(line_no) +
-                                    ": temp_c = " + Num(d.temp_c.back()) +
-                                    " (outside the lubricant's Vogel range)");
+        throw FieldError("temp_c",
+                         "line " + std::to_string(line_no) +
+                             ": temp_c = " + Num(d.temp_c.back()) +
+                             " (outside the lubricant's Vogel range)");
       d.eta_pa_s.push_back(eta);
     }
   }
-  if (d.size() == 0) throw std::invalid_argument("no data rows");
+  if (d.size() == 0) throw FieldError("body", "no data rows");
   return d;
 }
 
@@ -380,8 +387,9 @@ RobotDescription RobotFromJson(const json& j) {
   RobotDescription r;
   const json& joints = j["joints"];
   if (joints.empty() || joints.size() > 32)
-    throw std::invalid_argument("joints has " + std::to_string(joints.size()) +
-                                " entries (must be 1..32)");
+    throw FieldError("joints",
+                     "joints has " + std::to_string(joints.size()) +
+                         " entries (must be 1..32)");
   for (std::size_t i = 0; i < joints.size(); ++i) {
     const json& x = joints[i];
     const std::string at = "joints[" + std::to_string(i) + "].";
@@ -440,8 +448,8 @@ RobotDescription RobotFromJson(const json& j) {
             {fr.load_n, "load_n"},
             {fr.radius_mm, "radius_mm"}})
         if (!(v > 0))
-          throw std::invalid_argument(fat + name + " = " + Num(v) +
-                                      " (must be > 0)");
+          throw FieldError(fat + name,
+                           fat + name + " = " + Num(v) + " (must be > 0)");
       ref = fr;
     }
     r.arm.joints.push_back(dh);

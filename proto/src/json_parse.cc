@@ -3,6 +3,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "frictiond/estimators/field_error.h"
+
 namespace frictiond {
 
 namespace {
@@ -32,11 +34,11 @@ nlohmann::json ParseJson(std::string_view text,
   try {
     return ParseWithDepth(text, max_depth);
   } catch (const TooDeep&) {
-    throw std::invalid_argument(std::string(field) + ": nesting deeper than " +
-                                std::to_string(max_depth));
+    throw FieldError(field,
+                     std::string(field) + ": nesting deeper than " +
+                         std::to_string(max_depth));
   } catch (const nlohmann::json::exception& e) {
-    throw std::invalid_argument(std::string(field) +
-                                ": invalid JSON: " + e.what());
+    throw FieldError(field, std::string(field) + ": invalid JSON: " + e.what());
   }
 }
 

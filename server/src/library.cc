@@ -9,6 +9,7 @@
 #include <sstream>
 #include <thread>
 
+#include "frictiond/estimators/field_error.h"
 #include "frictiond/estimators/identification.h"
 #include "frictiond/estimators/stroke_csv.h"
 #include "frictiond/proto/actuator_json.h"
@@ -75,13 +76,15 @@ int HttpStatusFor(StatusCode code) {
   return 500;
 }
 
-std::string FieldNamedIn(const std::string& message) {
-  std::string_view m = message;
-  if (m.rfind("line ", 0) == 0 || m.rfind("sample ", 0) == 0) {
-    const std::size_t c = m.find(": ");
-    if (c != std::string_view::npos) m.remove_prefix(c + 2);
-  }
-  return std::string(m.substr(0, m.find_first_of(" :")));
+RequestError InvalidArgumentFrom(const std::invalid_argument& e,
+                                 const std::string& fallback_field,
+                                 const std::string& prefix) {
+  const auto* typed = dynamic_cast<const FieldError*>(&e);
+  const std::string field = typed != nullptr && !typed->field().empty()
+                                ? typed->field()
+                                : fallback_field;
+  return RequestError(
+      StatusCode::kInvalidArgument, prefix + field, prefix + e.what());
 }
 
 bool IsValidId(const std::string& id) {

@@ -85,9 +85,7 @@ std::vector<ActuatorLog> ParseLogs(const std::string& body) {
       log.name = LogName(x.value("trajectory", ""), log.kp);
       logs.push_back(std::move(log));
     } catch (const std::invalid_argument& e) {
-      const std::string f = FieldNamedIn(e.what());
-      throw RequestError(
-          StatusCode::kInvalidArgument, prefix + f, prefix + e.what());
+      throw InvalidArgumentFrom(e, "log", prefix);
     }
   };
   if (j.contains("logs")) {

@@ -45,9 +45,7 @@ std::string Num(double x) {
 
 [[noreturn]] void BadInput(const std::invalid_argument& e,
                            const std::string& fallback_field) {
-  std::string field = FieldNamedIn(e.what());
-  if (field.empty()) field = fallback_field;
-  throw RequestError(StatusCode::kInvalidArgument, field, e.what());
+  throw InvalidArgumentFrom(e, fallback_field);
 }
 
 void CheckAllowed(const HttpRequest& req,

@@ -55,6 +55,8 @@
 
 #include <string>
 
+#include "frictiond/estimators/field_error.h"
+
 namespace frictiond {
 
 /// Friction laws; the BAM family shares CalcActuatorFrictionBudget.
@@ -74,7 +76,7 @@ enum class ActuatorFrictionLaw {
 /// "extended").
 std::string ActuatorFrictionLawName(ActuatorFrictionLaw law);
 /// Inverse of ActuatorFrictionLawName.
-/// @throws std::invalid_argument naming the unknown law.
+/// @throws FieldError naming the unknown law.
 ActuatorFrictionLaw ParseActuatorFrictionLaw(const std::string& name);
 
 /// Contact radius of the mixed-lubrication law [mm] (sliding speed and

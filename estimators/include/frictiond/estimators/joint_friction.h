@@ -77,6 +77,8 @@
 
 #include <Eigen/Core>
 
+#include "frictiond/estimators/field_error.h"
+
 namespace frictiond {
 
 /// Reference Sommerfeld number of the film law [um].
@@ -98,12 +100,12 @@ struct AsperitySurface {
 
 /// Surface from roughness parameters (eqs. 2-3): Alt = R/2 and
 /// SAlt = 0.35 sqrt(W^2 + SW^2), radii defaults otherwise.
-/// @throws std::invalid_argument naming a non-positive or non-finite input.
+/// @throws FieldError naming a non-positive or non-finite input.
 AsperitySurface MakeSurfaceFromRoughness(double r_um,
                                          double w_um,
                                          double sw_um);
 
-/// @throws std::invalid_argument naming the field, its value and the rule.
+/// @throws FieldError naming the field, its value and the rule.
 void ValidateSurface(const AsperitySurface& surface);
 
 /// Vogel viscosity law eta(T) = A exp(B / (T + C)), T in degrees C. The
@@ -115,7 +117,7 @@ struct Lubricant {
   double vogel_c_c = 95.0;        ///< C [degrees C]; T + C must stay > 0
 };
 
-/// @throws std::invalid_argument naming the field, its value and the rule.
+/// @throws FieldError naming the field, its value and the rule.
 void ValidateLubricant(const Lubricant& lubricant);
 
 /// Dynamic viscosity eta(T) [Pa s]. NaN when temp_c + C <= 0.
@@ -250,7 +252,7 @@ double SampleContactFriction(const MixedFrictionTheta& theta,
 class MixedFrictionTable {
  public:
   /// Builds the table (about 50 us).
-  /// @throws std::invalid_argument for invalid theta, surface, lubricant or
+  /// @throws FieldError for invalid theta, surface, lubricant or
   /// contact (naming the field).
   MixedFrictionTable(const MixedFrictionTheta& theta,
                      const AsperitySurface& surface,
@@ -315,7 +317,7 @@ struct WearPoint {
 /// worn height h(s) (dh/ds = K(S) p / H, p the nominal pressure) with the
 /// surface's Alt reduced by h (summits cannot wear below the mean line:
 /// Alt >= 0). Returns `points` samples from 0 to distance_mm.
-/// @throws std::invalid_argument for non-positive distance, points < 2 or
+/// @throws FieldError for non-positive distance, points < 2 or
 /// invalid parameters.
 std::vector<WearPoint> PredictWearDrift(const MixedFrictionTheta& theta,
                                         const AsperitySurface& surface,

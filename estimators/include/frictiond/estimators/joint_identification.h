@@ -33,6 +33,7 @@
 
 #include <Eigen/Core>
 
+#include "frictiond/estimators/field_error.h"
 #include "frictiond/estimators/joint_friction.h"
 
 namespace frictiond {
@@ -47,8 +48,8 @@ struct JointData {
   std::size_t size() const { return mu.size(); }
 };
 
-/// Throws std::invalid_argument naming the first bad sample ("sample i:
-/// field = value (rule)") or mismatched lengths.
+/// Throws FieldError naming the first bad sample's field (message "sample
+/// i: field = value (rule)") or the column whose length differs from mu's.
 void ValidateJointData(const JointData& data);
 
 /// Fixed, known properties of the joint used by the mixed model.

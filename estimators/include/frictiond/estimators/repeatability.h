@@ -30,6 +30,8 @@
 
 #include <Eigen/Core>
 
+#include "frictiond/estimators/field_error.h"
+
 namespace frictiond {
 
 enum class JointType { kRevolute, kPrismatic };
@@ -52,7 +54,7 @@ struct SerialArm {
   std::vector<DhJoint> joints;
 };
 
-/// @throws std::invalid_argument naming "joints[i].field", value and rule.
+/// @throws FieldError naming "joints[i].field", value and rule.
 void ValidateArm(const SerialArm& arm);
 
 /// End-effector position [mm] at joint coordinates q.

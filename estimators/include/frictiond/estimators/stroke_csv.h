@@ -8,6 +8,7 @@
 #include <string>
 #include <string_view>
 
+#include "frictiond/estimators/field_error.h"
 #include "frictiond/estimators/stroke_data.h"
 
 namespace frictiond {
@@ -16,20 +17,18 @@ namespace frictiond {
 /// "line 7: fn_n = -0.5 (must be > 0)"; line() is 1-based (0 when the error is
 /// not tied to a line, e.g. an empty body) and field() names the column
 /// ("body" or "header" for whole-input problems).
-class StrokeCsvError : public std::invalid_argument {
+class StrokeCsvError : public FieldError {
  public:
   StrokeCsvError(std::size_t line,
                  std::string field,
                  const std::string& message,
                  bool too_large = false);
   std::size_t line() const { return line_; }
-  const std::string& field() const { return field_; }
   /// True when the input broke a size limit (StrokeCsvOptions), not a rule.
   bool too_large() const { return too_large_; }
 
  private:
   std::size_t line_;
-  std::string field_;
   bool too_large_ = false;
 };
 

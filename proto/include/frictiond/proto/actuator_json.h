@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "frictiond/estimators/actuator_sim.h"
+#include "frictiond/estimators/field_error.h"
 
 namespace frictiond {
 
@@ -29,7 +30,7 @@ inline constexpr std::size_t kMaxActuatorLogEntries = 200000;
 /// timestamp step is used. Entries need `timestamp`, `position`,
 /// `goal_position`, `torque_enable`; `speed` (else differentiated
 /// positions) and `temp` (else 30 C) are optional.
-/// @throws std::invalid_argument "FIELD: reason" (e.g. "entries[3].position:
+/// @throws FieldError "FIELD: reason" (e.g. "entries[3].position:
 /// missing", "dt = -1 (must be finite and > 0)").
 ActuatorLog ParseActuatorLog(std::string_view text,
                              const std::string& name = "");
@@ -41,7 +42,7 @@ ActuatorLog ActuatorLogFromJson(const nlohmann::json& log,
 /// Model file: {"format": "frictiond-actuator-model", "version": 1, "law":
 /// name, "params": {name: value, ...}, ...}.
 nlohmann::json ActuatorModelToJson(const ActuatorModel& model);
-/// @throws std::invalid_argument naming the field (unknown law, a
+/// @throws FieldError naming the field (unknown law, a
 /// parameter outside its bounds or not a finite number).
 ActuatorModel ActuatorModelFromJson(const nlohmann::json& j);
 
@@ -49,7 +50,7 @@ ActuatorModel ActuatorModelFromJson(const nlohmann::json& j);
 /// load_friction_*, dtheta_stribeck, alpha; "model": m1..m6) as our model:
 /// m1 -> coulomb_viscous, m2 -> stribeck, m4 -> load_dependent, m5 ->
 /// directional, m6 -> m6.
-/// @throws std::invalid_argument naming the field.
+/// @throws FieldError naming the field.
 ActuatorModel ParseBamParams(std::string_view text);
 
 /// MJCF fragment for the joint: a <joint> with frictionloss (the law's

@@ -12,6 +12,7 @@
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
+#include "frictiond/estimators/field_error.h"
 #include "frictiond/estimators/joint_friction.h"
 #include "frictiond/estimators/joint_identification.h"
 #include "frictiond/estimators/repeatability.h"
@@ -40,21 +41,21 @@ nlohmann::json JointConfigToJson(const JointConfig& config,
                                  const WearParams& wear);
 /// Reads {"surface":{...},"contact":{...},"lubricant":{...},"wear":{...}};
 /// missing keys keep their defaults. Validates.
-/// @throws std::invalid_argument naming the field ("surface.salt_um = 0
+/// @throws FieldError naming the field ("surface.salt_um = 0
 /// (must be > 0)").
 void JointConfigFromJson(const nlohmann::json& j,
                          JointConfig* config,
                          WearParams* wear);
 
 nlohmann::json JointFamilyToJson(const JointFamily& family);
-/// @throws std::invalid_argument naming the missing or malformed field.
+/// @throws FieldError naming the missing or malformed field.
 JointFamily JointFamilyFromJson(const nlohmann::json& j);
 
 /// Parses joint data: CSV with a header, '#' comment lines, columns
 /// v_mm_s, load_n, mu (required) and temp_c or eta_pa_s (one required;
 /// eta_pa_s wins when both are given, temp_c is then kept as a covariate);
 /// viscosity from temp_c through `lubricant`. Other columns are ignored.
-/// @throws std::invalid_argument "line N: column = value (rule)" or naming
+/// @throws FieldError "line N: column = value (rule)" or naming
 /// the missing column; at most max_rows data rows.
 JointData ParseJointCsv(const std::string& text,
                         const Lubricant& lubricant,
@@ -86,7 +87,7 @@ struct RobotDescription {
 /// "joint", "v_mm_s", "load_n", "temp_c", "radius_mm"}, "q_min", "q_max"}],
 /// "q_home": [...]}. Angles in degrees on the wire (q of revolute joints in
 /// degrees too), radians inside.
-/// @throws std::invalid_argument naming the field ("joints[1].stiffness =
+/// @throws FieldError naming the field ("joints[1].stiffness =
 /// 0 (must be > 0)").
 RobotDescription RobotFromJson(const nlohmann::json& j);
 nlohmann::json RobotToJson(const RobotDescription& robot);

@@ -12,13 +12,15 @@
 
 #include <nlohmann/json.hpp>
 
+#include "frictiond/estimators/field_error.h"
+
 namespace frictiond {
 
 /// Deepest nesting accepted from outside (objects and arrays).
 inline constexpr int kMaxJsonDepth = 64;
 
 /// Parses `text`, refusing nesting deeper than `max_depth`.
-/// @throws std::invalid_argument "FIELD: invalid JSON: ..." or "FIELD:
+/// @throws FieldError "FIELD: invalid JSON: ..." or "FIELD:
 /// nesting deeper than N" (FIELD = `field`).
 nlohmann::json ParseJson(std::string_view text,
                          const char* field,

@@ -76,15 +76,15 @@ double ParseNumberParam(const std::string& name, const std::string& value);
 /// "version".
 int ParseVersionParam(const std::string& value);
 
-/// The field a validator's message names. The project's validators (the
-/// estimators' option checks, the stroke reassembler, the actuator log and
-/// joint parsers) start every message with the field: `field = value
-/// (rule)` or `field: why`, after a `line N: ` or `sample N: ` position
-/// when they have one. Returns the text before the first space or colon
-/// after that prefix ("line 3: mu = 2 (...)" -> "mu", "entries[3].position:
-/// missing" -> "entries[3].position"). Used where a message crosses from a
-/// validator to a transport; the one rule for it.
-std::string FieldNamedIn(const std::string& message);
+/// A validator's rejection as a request error (kInvalidArgument): the one
+/// place an error from estimators/ or proto/ crosses to a transport. The
+/// field is the FieldError's (field_error.h), else `fallback_field` (a
+/// plain std::invalid_argument names no field, and its message is never
+/// parsed for one). `prefix` ("logs[1].") goes before field and message
+/// when the validated value was nested in the request.
+RequestError InvalidArgumentFrom(const std::invalid_argument& e,
+                                 const std::string& fallback_field,
+                                 const std::string& prefix = "");
 
 /// Parses a request body as JSON (ParseJson: nesting bounded).
 /// @throws RequestError(StatusCode::kInvalidArgument) naming "body", with
