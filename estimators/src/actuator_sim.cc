@@ -9,6 +9,7 @@
 
 #include <Eigen/Dense>
 
+#include "frictiond/estimators/field_error.h"
 #include "frictiond/estimators/least_squares.h"
 
 namespace frictiond {
@@ -127,8 +128,9 @@ ActuatorModel MakeDefaultActuatorModel(ActuatorFrictionLaw law) {
 void ValidateActuatorLog(const ActuatorLog& log) {
   auto positive = [](const char* field, double v) {
     if (!(v > 0) || !std::isfinite(v))
-      throw std::invalid_argument(std::string(field) + " = " + Num(v) +
-                                  " (must be finite and > 0)");
+      throw FieldError(
+          field,
+          std::string(field) + " = " + Num(v) + " (must be finite and > 0)");
   };
   positive("mass", log.mass_kg);
   positive("length", log.length_m);
@@ -137,13 +139,14 @@ void ValidateActuatorLog(const ActuatorLog& log) {
   positive("dt", log.dt_s);
   const std::size_t n = log.q_rad.size();
   if (n < 2)
-    throw std::invalid_argument("entries: " + std::to_string(n) +
-                                " (must hold at least 2)");
+    throw FieldError(
+        "entries", "entries: " + std::to_string(n) + " (must hold at least 2)");
   auto same = [&](const char* field, std::size_t m) {
     if (m != n)
-      throw std::invalid_argument(std::string("entries.") + field + ": " +
-                                  std::to_string(m) + " values for " +
-                                  std::to_string(n) + " entries");
+      throw FieldError(std::string("entries.") + field,
+                       std::string("entries.") + field + ": " +
+                           std::to_string(m) + " values for " +
+                           std::to_string(n) + " entries");
   };
   same("timestamp", log.t_s.size());
   same("speed", log.dq_rad_s.size());
@@ -153,9 +156,9 @@ void ValidateActuatorLog(const ActuatorLog& log) {
   auto finite = [&](const char* field, const std::vector<double>& v) {
     for (std::size_t i = 0; i < v.size(); ++i)
       if (!std::isfinite(v[i]))
-        throw std::invalid_argument("entries[" + std::to_string(i) + "]." +
-                                    field + " = " + Num(v[i]) +
-                                    " (must be finite)");
+        throw FieldError("entries[" + std::to_string(i) + "]." + field,
+                         "entries[" + std::to_string(i) + "]." + field + " = " +
+                             Num(v[i]) + " (must be finite)");
   };
   finite("timestamp", log.t_s);
   finite("position", log.q_rad);
@@ -164,9 +167,10 @@ void ValidateActuatorLog(const ActuatorLog& log) {
   finite("temp", log.temp_c);
   for (std::size_t i = 1; i < n; ++i)
     if (!(log.t_s[i] > log.t_s[i - 1]))
-      throw std::invalid_argument(
+      throw FieldError(
+          "entries[" + std::to_string(i) + "].timestamp",
           "entries[" + std::to_string(i) + "].timestamp = " + Num(log.t_s[i]) +
-          " (must be > the previous " + Num(log.t_s[i - 1]) + ")");
+              " (must be > the previous " + Num(log.t_s[i - 1]) + ")");
 }
 
 ActuatorCommand CalcActuatorCommand(const ActuatorModel& m,

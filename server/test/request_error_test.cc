@@ -123,6 +123,16 @@ TEST(InvalidArgumentFrom, EveryRouteValidatorNamesItsField) {
           {"timestamp":1,"goal_position":0,"torque_enable":true}]})");
   EXPECT_EQ(Mapped([&] { ActuatorLogFromJson(log); }, "logs[1].").field(),
             "logs[1].entries[1].position");
+  // Header values are checked after parsing (ValidateActuatorLog).
+  nlohmann::json no_step = log;
+  no_step["entries"][1]["position"] = 0.1;
+  no_step["dt"] = 0;
+  EXPECT_EQ(Mapped([&] { ActuatorLogFromJson(no_step); }, "logs[0].").field(),
+            "logs[0].dt");
+  no_step["dt"] = 0.01;
+  no_step["entries"][1]["timestamp"] = 0;
+  EXPECT_EQ(Mapped([&] { ActuatorLogFromJson(no_step); }).field(),
+            "entries[1].timestamp");
   EXPECT_EQ(Mapped([] { ParseJson("{", "log"); }).field(), "log");
 
   // The stroke CSV's error is the same type.

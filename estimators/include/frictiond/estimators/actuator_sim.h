@@ -58,6 +58,7 @@
 #include <Eigen/Core>
 
 #include "frictiond/estimators/actuator_friction.h"
+#include "frictiond/estimators/field_error.h"
 
 namespace frictiond {
 
@@ -146,8 +147,8 @@ ActuatorCommand CalcActuatorCommand(const ActuatorModel& model,
                                     double q_rad,
                                     double motor_speed_rad_s);
 
-/// @throws std::invalid_argument naming the field, value and rule (header
-/// fields > 0, equal lengths >= 2, finite values, strictly increasing t).
+/// @throws FieldError naming the field, value and rule (header fields > 0,
+/// equal lengths >= 2, finite values, strictly increasing t).
 void ValidateActuatorLog(const ActuatorLog& log);
 
 /// Every parameter that identification may free.
