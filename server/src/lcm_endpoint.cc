@@ -849,8 +849,18 @@ class LcmEndpointImpl {
                         const char* type) {
     const StrokeProgress progress = *reassembler_.Progress(key);
     const StrokeSender sender = SenderOf(robot, type);
+    StrokeData stroke;
+    try {
+      stroke = reassembler_.Take(key);  // the stroke leaves the reassembler
+    } catch (const RequestError& e) {
+      // Chunks overlapping in time show only once all are in: the robot's
+      // error, answered like a rejected chunk (HandleChunk), not internal.
+      PublishError(
+          type, "", robot, job.id, key.stroke, -1, e.field(), e.what());
+      return;
+    }
     const StrokeOutcome o =
-        collector_.AddStroke(&job, key.stroke, reassembler_.Take(key), sender);
+        collector_.AddStroke(&job, key.stroke, std::move(stroke), sender);
     using Kind = StrokeOutcome::Kind;
     switch (o.kind) {
       case Kind::kRejected:

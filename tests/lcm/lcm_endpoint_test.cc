@@ -332,6 +332,25 @@ TEST_F(LcmEndpointTest, BadChunksAreRejectedNamingTheFieldAndStoreNothing) {
   EXPECT_EQ(library_->store().GetJob(job)->state, "requested");
 }
 
+// Chunks that overlap in time are found only once the stroke is complete
+// (chunk 1 may arrive before chunk 0). That is still the robot's error: it
+// names t_s, the job and the stroke, as the other rejections do, not an
+// internal error of the daemon; nothing is stored.
+TEST_F(LcmEndpointTest, ChunksOverlappingInTimeAreRejectedNamingTs) {
+  const material_reply_v1 r = Query("felt");
+  ASSERT_EQ(r.status, +material_reply_v1::STATUS_UNKNOWN) << r.reason;
+  stroke_chunk_v1 second = MakeChunk(r.job_id, 1, 2, true);
+  for (double& t : second.t_s) t -= 0.03;  // starts inside chunk 0
+  inbox_->lcm().publish(kLcmStrokeChannel, &second);
+  const error_v1 e = ExpectRejected(MakeChunk(r.job_id, 0, 2, false));
+  EXPECT_EQ(e.field, "t_s") << e.reason;
+  EXPECT_EQ(e.job_id, r.job_id);
+  EXPECT_EQ(e.stroke, 0);
+  EXPECT_NE(e.reason.find("before the previous chunk ends"), std::string::npos)
+      << e.reason;
+  ExpectNothingStored("felt");
+}
+
 TEST_F(LcmEndpointTest, TooLittleSpanGetsAFollowUpThenFails) {
   const material_reply_v1 r = Query("felt");
   ASSERT_EQ(r.status, +material_reply_v1::STATUS_UNKNOWN);
