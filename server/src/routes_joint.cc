@@ -43,11 +43,6 @@ std::string Num(double x) {
   return buf;
 }
 
-[[noreturn]] void BadInput(const std::invalid_argument& e,
-                           const std::string& fallback_field) {
-  throw InvalidArgumentFrom(e, fallback_field);
-}
-
 void CheckAllowed(const HttpRequest& req,
                   const std::vector<std::string>& allowed) {
   for (const auto& kv : req.query) {
@@ -154,7 +149,7 @@ HttpResponse HandleUpload(FrictionLibrary& lib, const HttpRequest& req) {
     data = ParseJointCsv(req.body, c.lubricant, kMaxJointRows);
     ValidateJointData(data);
   } catch (const std::invalid_argument& e) {
-    BadInput(e, "body");
+    throw InvalidArgumentFrom(e, "body");
   }
   if (data.size() < static_cast<std::size_t>(kMinJointSamples))
     throw RequestError(StatusCode::kFailedPrecondition,
@@ -368,7 +363,7 @@ HttpResponse HandleWear(FrictionLibrary& lib, const HttpRequest& req) {
                            distance,
                            static_cast<int>(points));
   } catch (const std::invalid_argument& e) {
-    BadInput(e, "distance_mm");
+    throw InvalidArgumentFrom(e, "distance_mm");
   }
   json pts = json::array();
   for (const WearPoint& w : run)
@@ -556,7 +551,7 @@ HttpResponse HandlePutRobot(FrictionLibrary& lib, const HttpRequest& req) {
   try {
     robot = RobotFromJson(j);
   } catch (const std::invalid_argument& e) {
-    BadInput(e, "body");
+    throw InvalidArgumentFrom(e, "body");
   }
   const bool created = lib.PutRobot(id, robot);
   const json doc = RobotToJson(robot);
