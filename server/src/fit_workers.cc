@@ -38,13 +38,13 @@ void FitWorkers::PostShare(std::function<void()> task) {
   });
 }
 
-FitWorkers::Refit FitWorkers::Begin() {
+FitWorkers::InFlight FitWorkers::Begin() {
   std::lock_guard<std::mutex> lock(load_mu_);
   ++in_flight_;
-  return Refit(this);
+  return InFlight(this);
 }
 
-bool FitWorkers::Refit::split() const {
+bool FitWorkers::InFlight::split() const {
   std::lock_guard<std::mutex> lock(pool_->load_mu_);
   return pool_->SplitFitsLocked();
 }
@@ -53,11 +53,11 @@ bool FitWorkers::SplitFitsLocked() const {
   return 2 * in_flight_ <= static_cast<int>(threads_.size());
 }
 
-FitWorkers::Refit::Refit(Refit&& other) noexcept : pool_(other.pool_) {
+FitWorkers::InFlight::InFlight(InFlight&& other) noexcept : pool_(other.pool_) {
   other.pool_ = nullptr;
 }
 
-FitWorkers::Refit::~Refit() {
+FitWorkers::InFlight::~InFlight() {
   if (pool_ == nullptr) return;
   std::lock_guard<std::mutex> lock(pool_->load_mu_);
   --pool_->in_flight_;

@@ -497,7 +497,7 @@ IngestResult FrictionLibrary::IngestStrokes(const std::string& material,
   Ingestor::PairLock pair = ingestor_->Lock(material, options.fingertip);
   // Counted from here to the commit: whether a refit splits depends on the
   // uploads in flight, not only on the refits (fit_workers.h).
-  const FitWorkers::Refit slot = fit_workers_->Begin();
+  const FitWorkers::InFlight slot = fit_workers_->Begin();
   // 3. Labelling: explicit, else the pair's previous one, else defaults.
   SlipLabelOptions labelling;
   auto previous = FindModel(material, options.fingertip);
@@ -587,7 +587,7 @@ FrictionLibrary::ModelSetFit FrictionLibrary::FitModelSet(
     const StrokeData& upload,
     const CachedModel* previous,
     const SlipLabelOptions& labelling,
-    const FitWorkers::Refit& slot) const {
+    const FitWorkers::InFlight& slot) const {
   StochasticFitOptions fit_options;
   if (previous && previous->set.stochastic) {
     // Keep an extended model's terms (product columns included) and its eps

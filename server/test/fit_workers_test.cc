@@ -64,10 +64,10 @@ TEST(FitWorkers, TwoWorkersRunTwoTasksAtOnce) {
 TEST(FitWorkers, SplitsOnlyWhileEveryUploadCanHaveTwoThreads) {
   FitWorkers two(2);
   {
-    const FitWorkers::Refit a = two.Begin();
+    const FitWorkers::InFlight a = two.Begin();
     EXPECT_TRUE(a.split());
     {
-      const FitWorkers::Refit b = two.Begin();
+      const FitWorkers::InFlight b = two.Begin();
       EXPECT_FALSE(b.split());
       EXPECT_FALSE(a.split());  // b arrived: a refit starting now stays whole
     }
@@ -75,20 +75,20 @@ TEST(FitWorkers, SplitsOnlyWhileEveryUploadCanHaveTwoThreads) {
   }
   EXPECT_TRUE(two.Begin().split());
   FitWorkers four(4);
-  const FitWorkers::Refit a = four.Begin();
-  const FitWorkers::Refit b = four.Begin();
+  const FitWorkers::InFlight a = four.Begin();
+  const FitWorkers::InFlight b = four.Begin();
   EXPECT_TRUE(a.split());
   EXPECT_TRUE(b.split());
   {
-    const FitWorkers::Refit c = four.Begin();
+    const FitWorkers::InFlight c = four.Begin();
     EXPECT_FALSE(a.split());
     EXPECT_FALSE(c.split());
   }
   EXPECT_TRUE(b.split());
   FitWorkers moved_from(2);
   {
-    FitWorkers::Refit first = moved_from.Begin();
-    const FitWorkers::Refit second(std::move(first));  // still one upload
+    FitWorkers::InFlight first = moved_from.Begin();
+    const FitWorkers::InFlight second(std::move(first));  // still one upload
     EXPECT_TRUE(second.split());
   }
   FitWorkers one(1);
@@ -107,12 +107,12 @@ TEST(FitWorkers, PostedShareIsSkippedWhenTheMachineBecameBusy) {
     std::shared_future<void> gate_b = open_b.get_future().share();
     two.Post([gate_a] { gate_a.wait(); });  // one worker each
     two.Post([gate_b] { gate_b.wait(); });
-    const FitWorkers::Refit mine = two.Begin();
+    const FitWorkers::InFlight mine = two.Begin();
     ASSERT_TRUE(mine.split());
     std::atomic<int> ran{0};
     two.PostShare([&ran] { ++ran; });
     two.Post([&reached] { reached.set_value(); });
-    std::optional<FitWorkers::Refit> other;
+    std::optional<FitWorkers::InFlight> other;
     if (busy) other.emplace(two.Begin());
     open_a.set_value();  // one worker runs the share, then the marker
     reached.get_future().wait();

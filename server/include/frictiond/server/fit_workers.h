@@ -55,29 +55,30 @@ class FitWorkers {
   /// exception in its own future).
   void Post(std::function<void()> task);
 
-  /// One refit in flight, counted while the object lives.
-  class Refit {
+  /// One upload in flight (from its pair lock through its commit, refit
+  /// included), counted while the object lives.
+  class InFlight {
    public:
-    ~Refit();
-    Refit(Refit&& other) noexcept;
-    Refit(const Refit&) = delete;
-    Refit& operator=(const Refit&) = delete;
-    Refit& operator=(Refit&&) = delete;
+    ~InFlight();
+    InFlight(InFlight&& other) noexcept;
+    InFlight(const InFlight&) = delete;
+    InFlight& operator=(const InFlight&) = delete;
+    InFlight& operator=(InFlight&&) = delete;
     /// Whether this upload's refit should post its second share now: true
     /// when at most threads/2 uploads are in flight, this one included.
     /// Ask when the refit starts (another upload may have begun meanwhile).
-    /// Not on a moved-from Refit.
+    /// Not on a moved-from InFlight.
     bool split() const;
 
    private:
     friend class FitWorkers;
-    explicit Refit(FitWorkers* pool) : pool_(pool) {}
+    explicit InFlight(FitWorkers* pool) : pool_(pool) {}
     FitWorkers* pool_;
   };
-  /// Counts an upload in flight until the returned Refit goes: take it once
+  /// Counts an upload in flight until the returned InFlight goes: take it once
   /// the upload holds its pair (an upload waiting for its pair's lock does
   /// not compete for a core) and keep it through the commit.
-  Refit Begin();
+  InFlight Begin();
 
   /// Like Post for a refit's second share, which its caller runs itself
   /// when no worker has started it (IdentifyMaterial): a worker skips the
@@ -97,7 +98,7 @@ class FitWorkers {
   /// threads. Call with load_mu_ held.
   bool SplitFitsLocked() const;
   std::mutex load_mu_;
-  int in_flight_ = 0;  // uploads between Begin and ~Refit
+  int in_flight_ = 0;  // uploads between Begin and ~InFlight
 };
 
 }  // namespace frictiond

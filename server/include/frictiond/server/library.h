@@ -288,7 +288,7 @@ class FrictionLibrary {
                           const StrokeData& upload,
                           const CachedModel* previous,
                           const SlipLabelOptions& labelling,
-                          const FitWorkers::Refit& slot) const;
+                          const FitWorkers::InFlight& slot) const;
   /// Caches a version just committed (made from what was committed).
   std::shared_ptr<const CachedModel> Publish(const nlohmann::json& doc,
                                              const ModelRecord& record);
