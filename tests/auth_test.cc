@@ -262,6 +262,83 @@ TEST_F(AuthDispatchTest, OpenApiDescribesEveryRegisteredRoute) {
     EXPECT_TRUE(names.count(n)) << n;
 }
 
+// The table behind openapi.json names exactly the query parameters each route
+// takes: a route that rejects an unknown name lists, in its error, the
+// documented names (handler within the table), and no route rejects a
+// documented name as unknown (table within the handler).
+TEST_F(AuthDispatchTest, OpenApiQueryParametersAreThoseTheRoutesAccept) {
+  auto path_of = [](const std::string& pattern) {
+    std::string path;
+    for (std::size_t i = 0; i < pattern.size();) {
+      if (pattern[i] == '{') {
+        path += "m1";
+        i = pattern.find('}', i) + 1;
+      } else {
+        path += pattern[i++];
+      }
+    }
+    return path;
+  };
+  int strict_routes = 0;
+  for (const RouteKey& r : daemon_->http().Routes()) {
+    if (r.pattern.rfind("/v1/", 0) != 0 || r.method == "DELETE") continue;
+    SCOPED_TRACE(r.method + " " + r.pattern);
+    const std::vector<std::string> documented =
+        DocumentedQueryParameters(r.method, r.pattern);
+    std::set<std::string> names(documented.begin(), documented.end());
+    names.erase(kModelInputsParameter);
+    // The required parameters, set, so that a route gets to its checks.
+    std::multimap<std::string, std::string> base;
+    const nlohmann::json doc =
+        nlohmann::json::parse(Send("none", "GET", "/v1/openapi.json").body);
+    std::string method = r.method;
+    for (char& c : method) c = static_cast<char>(std::tolower(c));
+    for (const auto& p : doc["paths"][r.pattern][method].value(
+             "parameters", nlohmann::json::array())) {
+      if (p.value("in", "") == "query" && p.value("required", false))
+        base.emplace(p.value("name", ""), "1");
+    }
+    auto rejected_as_unknown = [](const HttpResponse& res,
+                                  const std::string& name) {
+      if (res.status != 400) return false;
+      const auto j = nlohmann::json::parse(res.body, nullptr, false);
+      return j.is_object() && j.value("field", "") == name &&
+             j.value("detail", "").find("not known") != std::string::npos;
+    };
+    auto q = base;
+    q.emplace("zz_unknown", "1");
+    const HttpResponse res =
+        Send("operator", r.method, path_of(r.pattern), "", "", q);
+    if (rejected_as_unknown(res, "zz_unknown")) {
+      const std::string detail =
+          nlohmann::json::parse(res.body).value("detail", "");
+      const std::size_t at = detail.find("(allowed: ");
+      if (at != std::string::npos) {
+        ++strict_routes;
+        std::string list =
+            detail.substr(at + 10, detail.find(')', at) - at - 10);
+        std::set<std::string> allowed;
+        std::size_t i = 0;
+        while (i < list.size()) {
+          std::size_t end = std::min(list.find(", ", i), list.find(" or ", i));
+          if (end == std::string::npos) end = list.size();
+          allowed.insert(list.substr(i, end - i));
+          i = end + (list.compare(end, 4, " or ") == 0 ? 4 : 2);
+        }
+        EXPECT_EQ(allowed, names) << detail;
+      }
+    }
+    for (const std::string& n : names) {
+      auto one = base;
+      if (!one.count(n)) one.emplace(n, "1");
+      EXPECT_FALSE(rejected_as_unknown(
+          Send("operator", r.method, path_of(r.pattern), "", "", one), n))
+          << "documented but rejected: " << n;
+    }
+  }
+  EXPECT_GE(strict_routes, 15);
+}
+
 TEST_F(AuthDispatchTest, EveryRouteHasTheExpectedPolicy) {
   const std::vector<RouteKey> routes = daemon_->http().Routes();
   ASSERT_GT(routes.size(), 30u);

@@ -26,8 +26,14 @@ namespace frictiond {
 nlohmann::json BuildOpenApi(const std::vector<RouteKey>& routes,
                             const std::string& version);
 
+/// The name under which a route that takes the stored model's further
+/// inputs (covariates such as `temp_c`, by their own names) documents them:
+/// one OpenAPI object parameter (style form, explode), not a query key.
+inline constexpr char kModelInputsParameter[] = "inputs";
+
 /// The documented query parameters of a route, e.g. {"fn_n", "v_mm_s"}
-/// for `GET /v1/materials/{id}/predict`; empty when it takes none.
+/// for `GET /v1/materials/{id}/predict` (with kModelInputsParameter for a
+/// route that takes the model's further inputs); empty when it takes none.
 std::vector<std::string> DocumentedQueryParameters(const std::string& method,
                                                    const std::string& pattern);
 
