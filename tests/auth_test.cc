@@ -279,6 +279,8 @@ TEST_F(AuthDispatchTest, OpenApiQueryParametersAreThoseTheRoutesAccept) {
     }
     return path;
   };
+  const nlohmann::json doc =
+      nlohmann::json::parse(Send("none", "GET", "/v1/openapi.json").body);
   int strict_routes = 0;
   for (const RouteKey& r : daemon_->http().Routes()) {
     if (r.pattern.rfind("/v1/", 0) != 0 || r.method == "DELETE") continue;
@@ -289,8 +291,6 @@ TEST_F(AuthDispatchTest, OpenApiQueryParametersAreThoseTheRoutesAccept) {
     names.erase(kModelInputsParameter);
     // The required parameters, set, so that a route gets to its checks.
     std::multimap<std::string, std::string> base;
-    const nlohmann::json doc =
-        nlohmann::json::parse(Send("none", "GET", "/v1/openapi.json").body);
     std::string method = r.method;
     for (char& c : method) c = static_cast<char>(std::tolower(c));
     for (const auto& p : doc["paths"][r.pattern][method].value(

@@ -27,22 +27,24 @@ using RouteQueries =
 const RouteQueries& QueryTable() {
   // Shared entries: the model a read route serves (routes_core.cc ModelFor
   // reads fingertip, version and robot) and a joint's family.
-  const QueryParam fingertip{
+  static constexpr QueryParam fingertip{
       "fingertip", "string", false, "fingertip id (default: default)"};
-  const QueryParam version{
+  static constexpr QueryParam version{
       "version", "integer", false, "model version (default: latest)"};
-  const QueryParam robot{"robot",
-                         "string",
-                         false,
-                         "requesting robot (else X-Robot-Id), for the stroke "
-                         "plan of a material without a model"};
-  const QueryParam joint{
+  static constexpr QueryParam robot{
+      "robot",
+      "string",
+      false,
+      "requesting robot (else X-Robot-Id), for the stroke "
+      "plan of a material without a model"};
+  static constexpr QueryParam joint{
       "joint", "string", false, "joint id (default: default)"};
-  const QueryParam inputs{kModelInputsParameter,
-                          "object",
-                          false,
-                          "further inputs of the stored model by name (e.g. "
-                          "temp_c=23), numbers; any other name is rejected"};
+  static constexpr QueryParam inputs{
+      kModelInputsParameter,
+      "object",
+      false,
+      "further inputs of the stored model by name (e.g. "
+      "temp_c=23), numbers; any other name is rejected"};
   static const RouteQueries table = {
       {{"GET", "/v1/materials"},
        {{"q", "string", false, "only ids or names containing this text"}}},
