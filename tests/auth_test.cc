@@ -22,6 +22,7 @@
 #include "frictiond/estimators/stroke_csv.h"
 #include "frictiond/server/daemon.h"
 #include "frictiond/server/openapi.h"
+#include "frictiond/server/query_parameters.h"
 #include "frictiond/testing/daemon_process.h"
 #include "frictiond/testing/stroke_simulator.h"
 
@@ -262,11 +263,20 @@ TEST_F(AuthDispatchTest, OpenApiDescribesEveryRegisteredRoute) {
     EXPECT_TRUE(names.count(n)) << n;
 }
 
-// The table behind openapi.json names exactly the query parameters each route
-// takes: a route that rejects an unknown name lists, in its error, the
-// documented names (handler within the table), and no route rejects a
-// documented name as unknown (table within the handler).
+// The one table behind openapi.json is what the server enforces: every /v1
+// route rejects a name the table does not list for it, naming it and listing
+// exactly the documented names, and accepts each documented name. A route
+// that takes the model's further inputs rejects a name that is neither
+// documented nor an input of the model.
 TEST_F(AuthDispatchTest, OpenApiQueryParametersAreThoseTheRoutesAccept) {
+  // m1 has a model, so that model routes get past their lookup.
+  ASSERT_EQ(Send("operator",
+                 "POST",
+                 "/v1/materials/m1/strokes",
+                 SimulatedCsv(11),
+                 "text/csv")
+                .status,
+            201);
   auto path_of = [](const std::string& pattern) {
     std::string path;
     for (std::size_t i = 0; i < pattern.size();) {
@@ -281,9 +291,9 @@ TEST_F(AuthDispatchTest, OpenApiQueryParametersAreThoseTheRoutesAccept) {
   };
   const nlohmann::json doc =
       nlohmann::json::parse(Send("none", "GET", "/v1/openapi.json").body);
-  int strict_routes = 0;
+  int checked_routes = 0;
   for (const RouteKey& r : daemon_->http().Routes()) {
-    if (r.pattern.rfind("/v1/", 0) != 0 || r.method == "DELETE") continue;
+    if (r.pattern.rfind("/v1/", 0) != 0) continue;
     SCOPED_TRACE(r.method + " " + r.pattern);
     const std::vector<std::string> documented =
         DocumentedQueryParameters(r.method, r.pattern);
@@ -303,31 +313,34 @@ TEST_F(AuthDispatchTest, OpenApiQueryParametersAreThoseTheRoutesAccept) {
       if (res.status != 400) return false;
       const auto j = nlohmann::json::parse(res.body, nullptr, false);
       return j.is_object() && j.value("field", "") == name &&
-             j.value("detail", "").find("not known") != std::string::npos;
+             j.value("detail", "").find("not known here") != std::string::npos;
     };
     auto q = base;
     q.emplace("zz_unknown", "1");
     const HttpResponse res =
         Send("operator", r.method, path_of(r.pattern), "", "", q);
-    if (rejected_as_unknown(res, "zz_unknown")) {
-      const std::string detail =
-          nlohmann::json::parse(res.body).value("detail", "");
+    ASSERT_TRUE(rejected_as_unknown(res, "zz_unknown")) << res.body;
+    ++checked_routes;
+    const std::string detail =
+        nlohmann::json::parse(res.body).value("detail", "");
+    if (TakesModelInputs(r.method, r.pattern)) {
+      EXPECT_NE(detail.find("not an input of this model"), std::string::npos)
+          << detail;
+    } else {
       const std::size_t at = detail.find("(allowed: ");
-      if (at != std::string::npos) {
-        ++strict_routes;
-        std::string list =
-            detail.substr(at + 10, detail.find(')', at) - at - 10);
-        std::set<std::string> allowed;
-        std::size_t i = 0;
-        while (i < list.size()) {
-          std::size_t end = std::min(list.find(", ", i), list.find(" or ", i));
-          if (end == std::string::npos) end = list.size();
-          allowed.insert(list.substr(i, end - i));
-          i = end + (list.compare(end, 4, " or ") == 0 ? 4 : 2);
-        }
-        EXPECT_EQ(allowed, names) << detail;
+      ASSERT_NE(at, std::string::npos) << detail;
+      const std::string list =
+          detail.substr(at + 10, detail.find(')', at) - at - 10);
+      std::set<std::string> allowed;
+      for (std::size_t i = 0; list != "none" && i < list.size();) {
+        std::size_t end = list.find(", ", i);
+        if (end == std::string::npos) end = list.size();
+        allowed.insert(list.substr(i, end - i));
+        i = end + 2;
       }
+      EXPECT_EQ(allowed, names) << detail;
     }
+    if (r.method == "DELETE") continue;  // its documented names: none
     for (const std::string& n : names) {
       auto one = base;
       if (!one.count(n)) one.emplace(n, "1");
@@ -336,7 +349,31 @@ TEST_F(AuthDispatchTest, OpenApiQueryParametersAreThoseTheRoutesAccept) {
           << "documented but rejected: " << n;
     }
   }
-  EXPECT_GE(strict_routes, 15);
+  EXPECT_GE(checked_routes, 40);
+}
+
+// The query check runs before the body is read: a typo is a 400 even when the
+// body would be too large, and the handler never runs (nothing is stored).
+TEST_F(AuthDispatchTest, UnknownQueryNameIsRejectedBeforeTheHandler) {
+  HttpRequest r;
+  r.method = "POST";
+  r.path = "/v1/materials/typo/strokes";
+  r.remote_addr = "127.0.0.1";
+  r.query.emplace("fingertips", "a");  // one letter too many
+  r.headers.emplace("Authorization", "Bearer " + secrets_.at("operator"));
+  r.headers.emplace("Content-Type", "text/csv");
+  const std::optional<HttpResponse> admitted = daemon_->http().Admit(r);
+  ASSERT_TRUE(admitted.has_value());
+  EXPECT_EQ(admitted->status, 400);
+  r.body = SimulatedCsv(12);
+  const HttpResponse res = daemon_->http().Dispatch(r);
+  EXPECT_EQ(res.status, 400);
+  const auto j = nlohmann::json::parse(res.body);
+  EXPECT_EQ(j.value("field", ""), "fingertips");
+  EXPECT_NE(j.value("detail", "").find("allowed: fingertip, robot"),
+            std::string::npos)
+      << res.body;
+  EXPECT_FALSE(Store().GetMaterial("typo").has_value());
 }
 
 TEST_F(AuthDispatchTest, EveryRouteHasTheExpectedPolicy) {

@@ -13,6 +13,7 @@
 #include "frictiond/proto/json_parse.h"
 #include "frictiond/server/lcm_auth.h"
 #include "frictiond/server/openapi.h"
+#include "frictiond/server/query_parameters.h"
 #include "frictiond/server/routes.h"
 
 namespace frictiond {
@@ -391,6 +392,7 @@ int Daemon::Start() {
   RegisterAuthRoutes(*http_, *auth_, library_->store());
   RegisterOpenApiRoute(*http_);  // last: it describes every route above
   auth_->Install(*http_);
+  InstallQueryCheck(*http_);  // the names openapi.json documents, no others
   const int port = http_->Bind(config_.bind, config_.port);
   // Fleet: writes of other daemons on a shared database (PostgreSQL)
   // invalidate this daemon's cache and are broadcast on LCM.

@@ -254,6 +254,7 @@ struct HttpServer::Impl {
   Metrics metrics;
   HttpAuthorizer authorizer;
   HttpObserver observer;
+  HttpQueryCheck query_check;
 };
 
 HttpServer::HttpServer(HttpOptions options)
@@ -483,6 +484,10 @@ void HttpServer::SetAuthorizer(HttpAuthorizer authorizer,
   impl_->observer = std::move(observer);
 }
 
+void HttpServer::SetQueryCheck(HttpQueryCheck check) {
+  impl_->query_check = std::move(check);
+}
+
 HttpResponse HttpServer::Dispatch(HttpRequest request) const {
   return *Run(std::move(request), /*headers_only=*/false);
 }
@@ -513,10 +518,12 @@ std::optional<HttpResponse> HttpServer::Run(HttpRequest request,
     route = entry->route;
     MatchRoute(*entry, segs, request.path, &captures);
     request.params = std::move(captures);
+    request.route = route;
     try {
       CheckRequestText(request, *entry);
       std::optional<HttpResponse> rejected;
       if (impl_->authorizer) rejected = impl_->authorizer(request, route);
+      if (!rejected && impl_->query_check) impl_->query_check(request, route);
       if (rejected) {
         out = std::move(*rejected);
       } else if (headers_only) {

@@ -31,20 +31,6 @@ namespace {
 constexpr const char* kActuatorFamilyKey = "actuator";
 constexpr std::size_t kMaxLogsPerUpload = 32;
 
-void CheckAllowed(const HttpRequest& req,
-                  const std::vector<std::string>& allowed) {
-  for (const auto& kv : req.query) {
-    if (std::find(allowed.begin(), allowed.end(), kv.first) == allowed.end()) {
-      std::string list;
-      for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-      throw RequestError(StatusCode::kInvalidArgument,
-                         kv.first.substr(0, 64),
-                         "query parameter " + kv.first.substr(0, 64) +
-                             " is not known (allowed: " + list + ")");
-    }
-  }
-}
-
 std::string JointParam(const HttpRequest& req) {
   const std::string j = req.QueryOr("joint", "default");
   CheckId(j, "joint");
@@ -139,7 +125,6 @@ LoadedActuator LoadActuator(FrictionLibrary& lib, const HttpRequest& req) {
 HttpResponse HandleUpload(FrictionLibrary& lib, const HttpRequest& req) {
   const std::string& id = req.params.at(0);
   CheckId(id, "id");
-  CheckAllowed(req, {"joint", "law"});
   const std::string joint = JointParam(req);
   RequireJson(req);
   const std::string law_name = req.QueryOr("law", "auto");
@@ -191,7 +176,6 @@ void RegisterActuatorRoutes(HttpServer& http, FrictionLibrary& library) {
   http.Route("GET",
              "/v1/materials/{id}/actuator-model",
              [&library](const HttpRequest& req) {
-               CheckAllowed(req, {"joint", "version"});
                const LoadedActuator a = LoadActuator(library, req);
                return HttpResponse::Json(200,
                                          {{"material", req.params.at(0)},
@@ -202,7 +186,6 @@ void RegisterActuatorRoutes(HttpServer& http, FrictionLibrary& library) {
   http.Route("POST",
              "/v1/materials/{id}/actuator-simulate",
              [&library](const HttpRequest& req) {
-               CheckAllowed(req, {"joint", "version"});
                RequireJson(req);
                const LoadedActuator a = LoadActuator(library, req);
                const std::vector<ActuatorLog> logs = ParseLogs(req.body);
@@ -220,7 +203,6 @@ void RegisterActuatorRoutes(HttpServer& http, FrictionLibrary& library) {
   http.Route("GET",
              "/v1/materials/{id}/actuator-mjcf",
              [&library](const HttpRequest& req) {
-               CheckAllowed(req, {"joint", "version"});
                const LoadedActuator a = LoadActuator(library, req);
                HttpResponse r;
                r.status = 200;

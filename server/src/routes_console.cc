@@ -95,16 +95,6 @@ std::shared_ptr<const CachedModel> FindModelFor(FrictionLibrary& lib,
 HttpResponse HandleSamples(FrictionLibrary& lib, const HttpRequest& req) {
   const std::string& id = req.params.at(0);
   CheckId(id, "id");
-  for (const auto& kv : req.query) {
-    const std::string& k = kv.first;
-    if (k != "max" && k != "fingertip" && k != "version") {
-      throw RequestError(StatusCode::kInvalidArgument,
-                         k,
-                         "query parameter " + k.substr(0, 64) +
-                             " is not known (allowed: max, fingertip, "
-                             "version)");
-    }
-  }
   std::size_t max_points = 2000;
   if (auto m = req.Query("max")) {
     const double x = ParseNumberParam("max", *m);

@@ -1,8 +1,10 @@
+#include <algorithm>
 #include <cmath>
 
 #include "frictiond/server/auth.h"
 #include "frictiond/server/identification_json.h"
 #include "frictiond/server/metrics.h"
+#include "frictiond/server/query_parameters.h"
 #include "frictiond/server/routes.h"
 #include "frictiond/server/text.h"
 
@@ -78,6 +80,26 @@ std::shared_ptr<const CachedModel> ModelFor(FrictionLibrary& lib,
     return m;
   }
   return lib.RequireModel(id, fingertip, Requester(req));
+}
+
+InputValues ModelInputParams(const HttpRequest& req,
+                             const StochasticFrictionModel& m) {
+  const std::vector<std::string> own =
+      DocumentedQueryParameters(req.method, req.route);
+  InputValues out;
+  for (const auto& [k, val] : req.query) {
+    if (std::find(own.begin(), own.end(), k) != own.end()) continue;
+    if (m.inputs.count(k) == 0 || k == "fn_n" || k == "v_mm_s") {
+      const std::string shown = ShownText(k, 64);
+      throw RequestError(
+          StatusCode::kInvalidArgument,
+          shown,
+          "query parameter '" + shown +
+              "' is not known here and not an input of this model");
+    }
+    out.emplace_back(k, ParseNumberParam(k, val));
+  }
+  return out;
 }
 
 const StochasticFrictionModel& Stochastic(const CachedModel& m) {
@@ -344,18 +366,8 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
         auto model = ModelFor(lib, req);
         const StochasticFrictionModel& m = Stochastic(*model);
         InputValues inputs{{"fn_n", fn}, {"v_mm_s", v}};
-        for (const auto& [k, val] : req.query) {
-          if (k == "fn_n" || k == "v_mm_s" || k == "fingertip" ||
-              k == "version" || k == "robot")
-            continue;
-          if (m.inputs.count(k) == 0) {
-            throw RequestError(StatusCode::kInvalidArgument,
-                               k,
-                               "query parameter " + k.substr(0, 64) +
-                                   " is not an input of this model");
-          }
-          inputs.emplace_back(k, ParseNumberParam(k, val));
-        }
+        for (auto& input : ModelInputParams(req, m))
+          inputs.push_back(std::move(input));
         const MuPrediction p = PredictMu(m, inputs);
         return HttpResponse::Json(
             200,

@@ -5,7 +5,6 @@
 //       [?fn_n=][&v_mm_s=][&rule=max|harmonic|average][&risk=][&reference=]
 #include <algorithm>
 #include <cmath>
-#include <set>
 
 #include "frictiond/estimators/contact_friction.h"
 #include "frictiond/proto/sim_export.h"
@@ -26,22 +25,6 @@ constexpr double kDefaultRisk = 0.05;
 constexpr CombineRule kDefaultRule = CombineRule::kHarmonicMean;
 
 std::string Num(double x) { return FormatRoundTrip(x); }
-
-/// Rejects query parameters outside `allowed` (typos would otherwise be
-/// ignored silently).
-void CheckKnownParams(const HttpRequest& req,
-                      const std::set<std::string>& allowed) {
-  for (const auto& [k, v] : req.query) {
-    if (allowed.count(k) == 0) {
-      std::string list;
-      for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-      throw RequestError(StatusCode::kInvalidArgument,
-                         k.substr(0, 64),
-                         "query parameter '" + k.substr(0, 64) +
-                             "' is not known here (allowed: " + list + ")");
-    }
-  }
-}
 
 double RiskParam(const HttpRequest& req) {
   const auto text = req.Query("risk");
@@ -150,15 +133,6 @@ json ModelRef(const CachedModel& m) {
 HttpResponse Export(FrictionLibrary& lib, const HttpRequest& req) {
   const std::string& id = req.params.at(0);
   CheckId(id, "id");
-  CheckKnownParams(req,
-                   {"format",
-                    "fingertip",
-                    "risk",
-                    "fn_n",
-                    "v_mm_s",
-                    "name",
-                    "version",
-                    "robot"});
   // Every parameter is checked before the library is asked (a malformed
   // request records no identification job).
   const auto format_text = req.Query("format");
@@ -225,8 +199,6 @@ HttpResponse PairFriction(FrictionLibrary& lib, const HttpRequest& req) {
   const std::string& object = req.params.at(1);
   CheckId(tip, "fingertip");
   CheckId(object, "object");
-  CheckKnownParams(req,
-                   {"fn_n", "v_mm_s", "rule", "risk", "reference", "robot"});
   const OperatingPointParams op = OperatingPointQuery(req);
   const double risk = RiskParam(req);
   CombineRule rule = kDefaultRule;

@@ -43,20 +43,6 @@ std::string Num(double x) {
   return buf;
 }
 
-void CheckAllowed(const HttpRequest& req,
-                  const std::vector<std::string>& allowed) {
-  for (const auto& kv : req.query) {
-    if (std::find(allowed.begin(), allowed.end(), kv.first) == allowed.end()) {
-      std::string list;
-      for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-      throw RequestError(StatusCode::kInvalidArgument,
-                         kv.first.substr(0, 64),
-                         "query parameter " + kv.first.substr(0, 64) +
-                             " is not known (allowed: " + list + ")");
-    }
-  }
-}
-
 double PositiveParam(const HttpRequest& req, const std::string& name) {
   const double x = req.RequireNumber(name);
   if (!(x > 0))
@@ -83,22 +69,6 @@ json Finite(double x) { return std::isfinite(x) ? json(x) : json(); }
 HttpResponse HandleUpload(FrictionLibrary& lib, const HttpRequest& req) {
   const std::string& id = req.params.at(0);
   CheckId(id, "id");
-  CheckAllowed(req,
-               {"joint",
-                "area_mm2",
-                "alt_um",
-                "salt_um",
-                "radius_log_sd",
-                "radius_log_mean",
-                "srad_um",
-                "summits",
-                "modulus_gpa",
-                "vogel_a_pa_s",
-                "vogel_b_c",
-                "vogel_c_c",
-                "k_solid",
-                "hardness_mpa",
-                "folds"});
   const std::string joint = JointParam(req);
   const std::string ct = req.Header("Content-Type");
   if (ct.rfind("text/csv", 0) != 0)
@@ -275,8 +245,6 @@ MixedPrediction PredictMixed(const JointFamily& f, double s_um, double load_n) {
 }
 
 HttpResponse HandleFriction(FrictionLibrary& lib, const HttpRequest& req) {
-  CheckAllowed(req,
-               {"v_mm_s", "load_n", "temp_c", "eta_pa_s", "joint", "version"});
   const std::string joint = JointParam(req);
   const LoadedFamily lf = LoadFamily(lib, req.params.at(0), joint, &req);
   const JointFamily& f = lf.family;
@@ -327,15 +295,6 @@ HttpResponse HandleFriction(FrictionLibrary& lib, const HttpRequest& req) {
 }
 
 HttpResponse HandleWear(FrictionLibrary& lib, const HttpRequest& req) {
-  CheckAllowed(req,
-               {"v_mm_s",
-                "load_n",
-                "temp_c",
-                "eta_pa_s",
-                "joint",
-                "version",
-                "distance_mm",
-                "points"});
   const std::string joint = JointParam(req);
   const LoadedFamily lf = LoadFamily(lib, req.params.at(0), joint, &req);
   const JointFamily& f = lf.family;
@@ -457,7 +416,6 @@ double Probability(const HttpRequest& req) {
 }
 
 HttpResponse HandleRepeatability(FrictionLibrary& lib, const HttpRequest& req) {
-  CheckAllowed(req, {"x_mm", "y_mm", "z_mm", "probability"});
   const std::string& id = req.params.at(0);
   const Eigen::Vector3d target(req.RequireNumber("x_mm"),
                                req.RequireNumber("y_mm"),
@@ -500,7 +458,6 @@ HttpResponse HandleRepeatability(FrictionLibrary& lib, const HttpRequest& req) {
 }
 
 HttpResponse HandleGrid(FrictionLibrary& lib, const HttpRequest& req) {
-  CheckAllowed(req, {"z_mm", "x0_mm", "y0_mm", "size_mm", "n", "probability"});
   const std::string& id = req.params.at(0);
   const double z = req.RequireNumber("z_mm");
   const double x0 = req.RequireNumber("x0_mm");

@@ -40,27 +40,6 @@ double PositiveParam(const HttpRequest& req,
 }
 
 HttpResponse HandleBreakaway(FrictionLibrary& lib, const HttpRequest& req) {
-  static const char* const kAllowed[] = {"rho",
-                                         "fn_n",
-                                         "mass_kg",
-                                         "mu_applied",
-                                         "v_mm_s",
-                                         "fingertip",
-                                         "version",
-                                         "robot"};
-  for (const auto& [key, value] : req.query) {
-    if (std::find_if(std::begin(kAllowed),
-                     std::end(kAllowed),
-                     [&key = key](const char* a) { return key == a; }) ==
-        std::end(kAllowed)) {
-      throw RequestError(StatusCode::kInvalidArgument,
-                         key,
-                         "query parameter " + key.substr(0, 64) +
-                             " is not known (allowed: rho, fn_n, mass_kg, "
-                             "mu_applied, v_mm_s, fingertip, version, "
-                             "robot)");
-    }
-  }
   const double rho = PositiveParam(req, "rho", " [1/s]");
   const double fn_n = PositiveParam(req, "fn_n", " [N]");
   ForceDrivenOptions options;

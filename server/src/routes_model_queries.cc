@@ -37,33 +37,12 @@ double ForceParam(const HttpRequest& req,
   return x;
 }
 
-// Query parameters other than `own` and the common ones must be inputs
-// (covariates) of the model; they are returned as inputs.
-InputValues CovariateParams(const HttpRequest& req,
-                            const StochasticFrictionModel& m,
-                            std::initializer_list<const char*> own) {
-  InputValues out;
-  for (const auto& [k, val] : req.query) {
-    bool skip = k == "fingertip" || k == "version" || k == "robot";
-    for (const char* o : own) skip = skip || k == o;
-    if (skip) continue;
-    if (m.inputs.count(k) == 0 || k == "fn_n" || k == "v_mm_s") {
-      throw RequestError(StatusCode::kInvalidArgument,
-                         k,
-                         "query parameter " + k.substr(0, 64) +
-                             " is not known here nor an input of this model");
-    }
-    out.emplace_back(k, ParseNumberParam(k, val));
-  }
-  return out;
-}
-
 HttpResponse HandleTargetForce(FrictionLibrary& lib, const HttpRequest& req) {
   const double fn = ForceParam(req, "fn_n", true);
   const double v = ForceParam(req, "v_mm_s", false);
   auto model = ModelFor(lib, req);
   const StochasticFrictionModel& m = Stochastic(*model);
-  const InputValues cov = CovariateParams(req, m, {"fn_n", "v_mm_s"});
+  const InputValues cov = ModelInputParams(req, m);
   const TargetForce f = CalcTargetTangentialForce(m, fn, v, cov);
   return HttpResponse::Json(200,
                             {{"material", model->set.material},
@@ -83,7 +62,7 @@ HttpResponse HandleSlidingSpeed(FrictionLibrary& lib, const HttpRequest& req) {
   const double ft = ForceParam(req, "ft_n", false);
   auto model = ModelFor(lib, req);
   const StochasticFrictionModel& m = Stochastic(*model);
-  const InputValues cov = CovariateParams(req, m, {"fn_n", "ft_n"});
+  const InputValues cov = ModelInputParams(req, m);
   const SlidingSpeed s = PredictSlidingSpeed(m, fn, ft, cov);
   if (s.status != SlidingSpeedStatus::kOk) {
     throw RequestError(StatusCode::kFailedPrecondition,
@@ -137,17 +116,6 @@ HttpResponse HandleConditional(FrictionLibrary& lib, const HttpRequest& req) {
   }
   const double ratio = has_ft ? ForceParam(req, "ft_n", false) / fn
                               : ForceParam(req, "ratio", false);
-  for (const auto& kv : req.query) {
-    const std::string& k = kv.first;
-    if (k != "fn_n" && k != "ft_n" && k != "ratio" && k != "fingertip" &&
-        k != "version" && k != "robot") {
-      throw RequestError(StatusCode::kInvalidArgument,
-                         k,
-                         "query parameter " + k.substr(0, 64) +
-                             " is not known (allowed: fn_n, ft_n or ratio, "
-                             "fingertip, version, robot)");
-    }
-  }
   auto model = ModelFor(lib, req);
   const StochasticFrictionModel& m = Stochastic(*model);
   auto it = model->set.other.find(kConditionalKey);
@@ -208,24 +176,6 @@ SlipSamples LoadSlipSamples(FrictionLibrary& lib,
                                                            : 0);
   }
   return out;
-}
-
-// Rejects query parameters other than `allowed` and the common ones.
-void CheckKnownParams(const HttpRequest& req,
-                      std::initializer_list<const char*> allowed,
-                      const std::string& allowed_text) {
-  for (const auto& kv : req.query) {
-    const std::string& k = kv.first;
-    bool ok = k == "fingertip" || k == "version" || k == "robot";
-    for (const char* a : allowed) ok = ok || k == a;
-    if (!ok) {
-      throw RequestError(StatusCode::kInvalidArgument,
-                         k,
-                         "query parameter " + k.substr(0, 64) +
-                             " is not known (allowed: " + allowed_text +
-                             ", fingertip, version, robot)");
-    }
-  }
 }
 
 // Optional integer query parameter in [lo, hi].
@@ -296,9 +246,6 @@ json WindowsToJson(const std::vector<MuWindowStd>& w) {
 }
 
 HttpResponse HandleMuSpread(FrictionLibrary& lib, const HttpRequest& req) {
-  CheckKnownParams(req,
-                   {"fn_n", "v_mm_s", "fn_widths_n", "v_widths_mm_s"},
-                   "fn_n, v_mm_s, fn_widths_n, v_widths_mm_s");
   const double fn = ForceParam(req, "fn_n", true);
   const double v = ForceParam(req, "v_mm_s", false);
   auto model = ModelFor(lib, req);
@@ -343,9 +290,6 @@ HttpResponse HandleMuSpread(FrictionLibrary& lib, const HttpRequest& req) {
 
 HttpResponse HandleSpanVariability(FrictionLibrary& lib,
                                    const HttpRequest& req) {
-  CheckKnownParams(req,
-                   {"subsets", "max_strokes", "seed", "bin_pct"},
-                   "subsets, max_strokes, seed, bin_pct");
   SpanVariabilityOptions o;
   o.subsets = IntParam(req, "subsets", 200, 1, 2000);
   o.max_strokes = IntParam(req, "max_strokes", 40, 1, 100000);
@@ -387,16 +331,6 @@ HttpResponse HandleForms(FrictionLibrary& lib, const HttpRequest& req) {
                          "folds = '" + *f + "' (must be an integer in 2..50)");
     }
     folds = static_cast<int>(x);
-  }
-  for (const auto& kv : req.query) {
-    const std::string& k = kv.first;
-    if (k != "folds" && k != "fingertip" && k != "version" && k != "robot") {
-      throw RequestError(StatusCode::kInvalidArgument,
-                         k,
-                         "query parameter " + k.substr(0, 64) +
-                             " is not known (allowed: folds, fingertip, "
-                             "version, robot)");
-    }
   }
   auto model = ModelFor(lib, req);
   const StochasticFrictionModel& m = Stochastic(*model);

@@ -8,6 +8,7 @@
 #include "frictiond/estimators/stroke_csv.h"
 #include "frictiond/server/http_server.h"
 #include "frictiond/server/library.h"
+#include "frictiond/server/query_parameters.h"
 #include "frictiond/server/routes.h"
 #include "frictiond/testing/stroke_simulator.h"
 
@@ -37,6 +38,7 @@ class DiagnosisRoutesTest : public ::testing::Test {
   DiagnosisRoutesTest() : lib_(OpenStore(":memory:")) {
     RegisterCoreRoutes(http_, lib_);
     RegisterDiagnosisRoutes(http_, lib_);
+    InstallQueryCheck(http_);  // as the daemon does
   }
   HttpResponse Call(const std::string& method,
                     const std::string& path,

@@ -1,8 +1,9 @@
 #pragma once
 // Shared by the HTTP libFuzzer harnesses (docs/fuzzing.md): one in-memory
 // library with the core, joint and token routes on an HttpServer that is
-// never bound (requests go through Dispatch), and one material with a
-// fitted model so that evaluation routes get past their lookups.
+// never bound (requests go through Dispatch, with the daemon's query check),
+// and one material with a fitted model so that evaluation routes get past
+// their lookups.
 #include <cmath>
 #include <cstdlib>
 #include <memory>
@@ -11,6 +12,7 @@
 #include "frictiond/server/auth.h"
 #include "frictiond/server/http_server.h"
 #include "frictiond/server/library.h"
+#include "frictiond/server/query_parameters.h"
 #include "frictiond/server/routes.h"
 
 namespace frictiond::fuzz {
@@ -29,6 +31,7 @@ struct HttpWorld {
     RegisterJointRoutes(*http, *lib);
     RegisterExportRoutes(*http, *lib);
     RegisterAuthRoutes(*http, *auth, lib->store());
+    InstallQueryCheck(*http);
     // A deterministic sliding stroke set: mu = 0.5 + 0.002 v + 0.01 Fn.
     std::string csv = "t_s,fn_n,ft_n,v_mm_s\n";
     unsigned state = 12345;

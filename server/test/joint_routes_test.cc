@@ -12,6 +12,7 @@
 #include "frictiond/estimators/joint_identification.h"
 #include "frictiond/server/http_server.h"
 #include "frictiond/server/library.h"
+#include "frictiond/server/query_parameters.h"
 #include "frictiond/server/routes.h"
 
 namespace frictiond {
@@ -59,6 +60,7 @@ class JointRoutesTest : public ::testing::Test {
   JointRoutesTest() : lib_(OpenStore(":memory:")) {
     RegisterCoreRoutes(http_, lib_);
     RegisterJointRoutes(http_, lib_);
+    InstallQueryCheck(http_);  // as the daemon does
   }
   HttpResponse Send(const std::string& method,
                     const std::string& path,

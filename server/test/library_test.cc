@@ -4,6 +4,7 @@
 
 #include "frictiond/estimators/stroke_csv.h"
 #include "frictiond/server/http_server.h"
+#include "frictiond/server/query_parameters.h"
 #include "frictiond/server/routes.h"
 #include "frictiond/testing/stroke_simulator.h"
 
@@ -22,6 +23,7 @@ class LibraryTest : public ::testing::Test {
  protected:
   LibraryTest() : lib_(OpenStore(":memory:")) {
     RegisterCoreRoutes(http_, lib_);
+    InstallQueryCheck(http_);  // as the daemon does
   }
   HttpResponse Get(const std::string& path,
                    std::multimap<std::string, std::string> query = {}) {

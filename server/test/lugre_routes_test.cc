@@ -20,6 +20,7 @@
 #include "frictiond/proto/lugre_json.h"
 #include "frictiond/server/http_server.h"
 #include "frictiond/server/library.h"
+#include "frictiond/server/query_parameters.h"
 #include "frictiond/server/routes.h"
 #include "frictiond/testing/lugre_strokes.h"
 #include "frictiond/testing/stroke_simulator.h"
@@ -110,6 +111,7 @@ class LuGreRoutesTest : public ::testing::Test {
     RegisterCoreRoutes(http_, lib_);
     RegisterLuGreFeature(http_, lib_);
     RegisterDiagnosisRoutes(http_, lib_);
+    InstallQueryCheck(http_);  // as the daemon does
   }
   HttpResponse Get(const std::string& path,
                    std::multimap<std::string, std::string> query = {}) {

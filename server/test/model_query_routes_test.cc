@@ -8,6 +8,7 @@
 #include "frictiond/estimators/stroke_csv.h"
 #include "frictiond/server/http_server.h"
 #include "frictiond/server/library.h"
+#include "frictiond/server/query_parameters.h"
 #include "frictiond/server/routes.h"
 #include "frictiond/testing/stroke_simulator.h"
 
@@ -21,6 +22,7 @@ class ModelQueryRoutesTest : public ::testing::Test {
   ModelQueryRoutesTest() : lib_(OpenStore(":memory:")) {
     RegisterCoreRoutes(http_, lib_);
     RegisterModelQueryRoutes(http_, lib_);
+    InstallQueryCheck(http_);  // as the daemon does
   }
   HttpResponse Get(const std::string& path,
                    std::multimap<std::string, std::string> query = {}) {

@@ -47,6 +47,9 @@ struct HttpRequest {
   std::string remote_addr;
   std::vector<std::string>
       params;  ///< {captures} of the route pattern, in order
+  /// The matched route's pattern, e.g. "/v1/materials/{id}/predict" (set by
+  /// Dispatch).
+  std::string route;
   std::multimap<std::string, std::string> query;  ///< decoded query parameters
   std::multimap<std::string, std::string> headers;
   /// Set by the authorizer (HttpServer::SetAuthorizer): the caller's token
@@ -103,6 +106,12 @@ using HttpObserver = std::function<void(const HttpRequest& request,
                                         const std::string& pattern,
                                         const HttpResponse& response)>;
 
+/// Called by Dispatch for a request the authorizer admitted, before the
+/// body is read and the handler runs, with the route's pattern: throws
+/// RequestError to reject the request's query (e.g. an unknown name).
+using HttpQueryCheck =
+    std::function<void(const HttpRequest& request, const std::string& pattern)>;
+
 /// A registered route.
 struct RouteKey {
   std::string method;
@@ -155,6 +164,9 @@ class HttpServer {
   /// before Serve(). Without an authorizer every route is open.
   void SetAuthorizer(HttpAuthorizer authorizer, HttpObserver observer = {});
 
+  /// Installs the query check (query_parameters.h); call before Serve().
+  void SetQueryCheck(HttpQueryCheck check);
+
   /// Binds to address:port (port 0 picks a free one).
   /// @return the bound port. @throws std::runtime_error when binding fails.
   int Bind(const std::string& address, int port);
@@ -174,7 +186,8 @@ class HttpServer {
   /// Decides a request from its method, path, query and headers alone,
   /// before its body is read: nullopt when the route exists and admits the
   /// caller, else the answer (404, 405, 400 for invalid text, 401/403 from
-  /// the authorizer), counted in metrics like Dispatch's.
+  /// the authorizer, 400 from the query check), counted in metrics like
+  /// Dispatch's.
   std::optional<HttpResponse> Admit(HttpRequest request) const;
 
  private:

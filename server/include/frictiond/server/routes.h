@@ -72,6 +72,14 @@ std::string Requester(const HttpRequest& req);
 std::shared_ptr<const CachedModel> ModelFor(FrictionLibrary& lib,
                                             const HttpRequest& req);
 
+/// The further inputs of model `m` a route that takes them
+/// (TakesModelInputs, query_parameters.h) was given: every query name its
+/// table entry does not list, parsed as a number. A name that is not an
+/// input of `m` (or is fn_n or v_mm_s, which the route sets itself) is a
+/// 400 naming it.
+InputValues ModelInputParams(const HttpRequest& req,
+                             const StochasticFrictionModel& m);
+
 /// The stochastic family of a served model; 422 (field "model") when the
 /// version has none.
 const StochasticFrictionModel& Stochastic(const CachedModel& m);
