@@ -26,11 +26,10 @@ std::string Num(double x) {
 
 json ParseBounded(std::string_view text, const char* what) {
   if (text.size() > kMaxActuatorLogBytes)
-    throw FieldError(what,
-                     std::string(what) + ": " + std::to_string(text.size()) +
-                         " bytes (limit " +
-                         std::to_string(kMaxActuatorLogBytes) + ")");
-  if (text.empty()) throw FieldError(what, std::string(what) + ": empty");
+    throw FieldError::Because(what,
+                              std::to_string(text.size()) + " bytes (limit " +
+                                  std::to_string(kMaxActuatorLogBytes) + ")");
+  if (text.empty()) throw FieldError::Because(what, "empty");
   return ParseJson(text, what, kMaxDepth);
 }
 
@@ -38,8 +37,8 @@ double Number(const json& obj,
               const std::string& key,
               const std::string& field) {
   const auto it = obj.find(key);
-  if (it == obj.end()) throw FieldError(field, field + ": missing");
-  if (!it->is_number()) throw FieldError(field, field + ": must be a number");
+  if (it == obj.end()) throw FieldError::Because(field, "missing");
+  if (!it->is_number()) throw FieldError::Because(field, "must be a number");
   const double v = it->get<double>();
   if (!std::isfinite(v))
     throw FieldError(field, field + " = " + Num(v) + " (must be finite)");
@@ -61,7 +60,7 @@ ActuatorLog ParseActuatorLog(std::string_view text, const std::string& name) {
 }
 
 ActuatorLog ActuatorLogFromJson(const json& j, const std::string& name) {
-  if (!j.is_object()) throw FieldError("log", "log: must be a JSON object");
+  if (!j.is_object()) throw FieldError::Because("log", "must be a JSON object");
   ActuatorLog log;
   log.name = name;
   log.motor = Text(j, "motor");
@@ -73,14 +72,14 @@ ActuatorLog ActuatorLogFromJson(const json& j, const std::string& name) {
   const bool has_dt = j.contains("dt");
   if (has_dt) log.dt_s = Number(j, "dt", "dt");
   const auto e = j.find("entries");
-  if (e == j.end()) throw FieldError("entries", "entries: missing");
-  if (!e->is_array()) throw FieldError("entries", "entries: must be an array");
+  if (e == j.end()) throw FieldError::Because("entries", "missing");
+  if (!e->is_array()) throw FieldError::Because("entries", "must be an array");
   const std::size_t n = e->size();
-  if (n == 0) throw FieldError("entries", "entries: empty");
+  if (n == 0) throw FieldError::Because("entries", "empty");
   if (n > kMaxActuatorLogEntries)
-    throw FieldError("entries",
-                     "entries: " + std::to_string(n) + " (limit " +
-                         std::to_string(kMaxActuatorLogEntries) + ")");
+    throw FieldError::Because("entries",
+                              std::to_string(n) + " (limit " +
+                                  std::to_string(kMaxActuatorLogEntries) + ")");
   log.t_s.reserve(n);
   log.q_rad.reserve(n);
   log.dq_rad_s.reserve(n);
@@ -91,16 +90,15 @@ ActuatorLog ActuatorLogFromJson(const json& j, const std::string& name) {
   for (std::size_t i = 0; i < n; ++i) {
     const json& x = (*e)[i];
     const std::string f = "entries[" + std::to_string(i) + "]";
-    if (!x.is_object()) throw FieldError(f, f + ": must be an object");
+    if (!x.is_object()) throw FieldError::Because(f, "must be an object");
     log.t_s.push_back(Number(x, "timestamp", f + ".timestamp"));
     log.q_rad.push_back(Number(x, "position", f + ".position"));
     log.goal_rad.push_back(Number(x, "goal_position", f + ".goal_position"));
     const auto te = x.find("torque_enable");
     if (te == x.end())
-      throw FieldError(f + ".torque_enable", f + ".torque_enable: missing");
+      throw FieldError::Because(f + ".torque_enable", "missing");
     if (!te->is_boolean())
-      throw FieldError(f + ".torque_enable",
-                       f + ".torque_enable: must be true or false");
+      throw FieldError::Because(f + ".torque_enable", "must be true or false");
     log.torque_enable.push_back(te->get<bool>() ? 1 : 0);
     if (i == 0) has_speed = x.contains("speed");
     log.dq_rad_s.push_back(has_speed ? Number(x, "speed", f + ".speed") : 0.0);
@@ -145,15 +143,15 @@ json ActuatorModelToJson(const ActuatorModel& model) {
 }
 
 ActuatorModel ActuatorModelFromJson(const json& j) {
-  if (!j.is_object()) throw FieldError("model", "model: must be an object");
+  if (!j.is_object()) throw FieldError::Because("model", "must be an object");
   const auto law = j.find("law");
   if (law == j.end() || !law->is_string())
-    throw FieldError("law", "law: missing or not a string");
+    throw FieldError::Because("law", "missing or not a string");
   ActuatorModel m = MakeDefaultActuatorModel(
       ParseActuatorFrictionLaw(law->get<std::string>()));
   const auto params = j.find("params");
   if (params == j.end() || !params->is_object())
-    throw FieldError("params", "params: missing or not an object");
+    throw FieldError::Because("params", "missing or not an object");
   for (int i = 0; i < static_cast<int>(ActuatorParam::kCount); ++i) {
     const auto p = static_cast<ActuatorParam>(i);
     const ActuatorParamInfo& info = GetActuatorParamInfo(p);
@@ -172,7 +170,7 @@ ActuatorModel ActuatorModelFromJson(const json& j) {
 
 ActuatorModel ParseBamParams(std::string_view text) {
   const json j = ParseBounded(text, "params");
-  if (!j.is_object()) throw FieldError("params", "params: must be an object");
+  if (!j.is_object()) throw FieldError::Because("params", "must be an object");
   const std::string model = Text(j, "model");
   ActuatorFrictionLaw law;
   if (model == "m1")

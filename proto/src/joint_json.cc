@@ -25,7 +25,7 @@ std::string Num(double x) {
 }
 
 [[noreturn]] void Bad(const std::string& field, const std::string& why) {
-  throw FieldError(field, field + ": " + why);
+  throw FieldError::Because(field, why);
 }
 
 // Reads an optional number at j[key] into *x (kept when absent).

@@ -68,6 +68,14 @@ TEST(FieldError, PrefixedNamesTheOuterPath) {
   EXPECT_STREQ(e.what(), "surface.salt_um = 0 (must be > 0)");
 }
 
+TEST(FieldError, BecauseStartsTheMessageWithTheField) {
+  const FieldError e = FieldError::Because("entries", "must be an array");
+  EXPECT_EQ(e.field(), "entries");
+  EXPECT_STREQ(e.what(), "entries: must be an array");
+  EXPECT_STREQ(e.Prefixed("logs[2].").what(),
+               "logs[2].entries: must be an array");
+}
+
 // Each validator a route calls names its field through the type, including
 // the messages that begin with a position ("line 3: ", "sample 7: ").
 TEST(InvalidArgumentFrom, EveryRouteValidatorNamesItsField) {

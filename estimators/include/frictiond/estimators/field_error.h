@@ -29,6 +29,11 @@ class FieldError : public std::invalid_argument {
   /// `message` is the whole text a user reads (it usually begins with the
   /// field); `field` may be empty when no single field is at fault.
   FieldError(std::string field, const std::string& message);
+
+  /// The error "`field`: `why`", e.g. Because("entries", "must be an array")
+  /// reads "entries: must be an array". For rules that state a value use
+  /// the constructor: "kt = -1 (must be > 0)".
+  static FieldError Because(const std::string& field, const std::string& why);
   const std::string& field() const noexcept { return field_; }
 
   /// The same error one level further out: `prefix` ("surface.",
