@@ -376,6 +376,28 @@ TEST_F(AuthDispatchTest, UnknownQueryNameIsRejectedBeforeTheHandler) {
   EXPECT_FALSE(Store().GetMaterial("typo").has_value());
 }
 
+// Each query parameter is one value: a repeated name is a 400 naming it, on
+// a route that takes model inputs as on any other, instead of an answer for
+// whichever value the server happened to read.
+TEST_F(AuthDispatchTest, RepeatedQueryNameIsRejected) {
+  for (const char* path :
+       {"/v1/materials/m1/predict", "/v1/materials/m1/grip-force"}) {
+    SCOPED_TRACE(path);
+    const HttpResponse res =
+        Send("operator",
+             "GET",
+             path,
+             "",
+             "",
+             {{"fn_n", "1"}, {"fn_n", "2"}, {"v_mm_s", "1"}});
+    EXPECT_EQ(res.status, 400);
+    const auto j = nlohmann::json::parse(res.body);
+    EXPECT_EQ(j.value("field", ""), "fn_n");
+    EXPECT_NE(j.value("detail", "").find("given 2 times"), std::string::npos)
+        << res.body;
+  }
+}
+
 TEST_F(AuthDispatchTest, EveryRouteHasTheExpectedPolicy) {
   const std::vector<RouteKey> routes = daemon_->http().Routes();
   ASSERT_GT(routes.size(), 30u);

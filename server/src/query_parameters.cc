@@ -275,9 +275,21 @@ bool TakesModelInputs(const std::string& method, const std::string& pattern) {
 
 void CheckQueryParameters(const HttpRequest& request,
                           const std::string& pattern) {
-  if (request.query.empty() || !IsV1(pattern) ||
-      TakesModelInputs(request.method, pattern))
-    return;
+  if (request.query.empty() || !IsV1(pattern)) return;
+  // Every parameter is one value: a repeated name is rejected rather than
+  // answered for one of its values (which one the client meant is unknown).
+  for (auto it = request.query.begin(); it != request.query.end();
+       it = request.query.upper_bound(it->first)) {
+    const std::size_t times = request.query.count(it->first);
+    if (times > 1) {
+      const std::string shown = ShownText(it->first, 64);
+      throw RequestError(StatusCode::kInvalidArgument,
+                         shown,
+                         "query parameter '" + shown + "' is given " +
+                             std::to_string(times) + " times (give it once)");
+    }
+  }
+  if (TakesModelInputs(request.method, pattern)) return;
   const auto& params = QueryParametersOf(request.method, pattern);
   for (const auto& entry : request.query) {
     const std::string& key = entry.first;

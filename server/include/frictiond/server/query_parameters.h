@@ -6,7 +6,8 @@
 ///   client sends exactly these names;
 /// - the HTTP server rejects any other name before the route's handler runs
 ///   (InstallQueryCheck), so a typo such as `?fn=5` or `?fingertips=a` is a
-///   400 naming it instead of being ignored silently.
+///   400 naming it instead of being ignored silently, and so is a name
+///   given twice (`?fn_n=1&fn_n=2`).
 ///
 /// A route that also takes the stored model's further inputs (covariates
 /// such as `temp_c`, by their own names; kModelInputsParameter in the
@@ -49,11 +50,13 @@ std::vector<RouteKey> RoutesWithDocumentedQueries();
 /// True when the route takes the stored model's further inputs.
 bool TakesModelInputs(const std::string& method, const std::string& pattern);
 
-/// Rejects the first query name the table does not list for `request`'s
-/// route (`pattern`): RequestError(kInvalidArgument) with the name as its
-/// field and "query parameter 'x' is not known here (allowed: a, b)"
-/// ("allowed: none" for a route that takes none). Does nothing for a route
-/// outside `/v1` or one that TakesModelInputs.
+/// Rejects, with RequestError(kInvalidArgument) and the name as its field,
+/// a query name given more than once ("query parameter 'x' is given 2 times
+/// (give it once)": each parameter is one value), then the first name the
+/// table does not list for `request`'s route (`pattern`): "query parameter
+/// 'x' is not known here (allowed: a, b)" ("allowed: none" for a route that
+/// takes none; a route that TakesModelInputs leaves unlisted names to its
+/// handler). Does nothing for a route outside `/v1`.
 void CheckQueryParameters(const HttpRequest& request,
                           const std::string& pattern);
 
