@@ -47,13 +47,18 @@ double RequireNumber(const json& j, const char* key, const std::string& where) {
   return x;
 }
 
-// Re-throws a validator's error with a prefix ("surface." etc).
+// Re-throws a validator's error with a prefix ("surface." etc). An error
+// without a field names the prefix's object ("surface: ...").
 template <typename F>
 void Prefixed(const std::string& prefix, F&& f) {
   try {
     f();
   } catch (const FieldError& e) {
     throw e.Prefixed(prefix);
+  } catch (const std::invalid_argument& e) {
+    std::string object = prefix;
+    if (!object.empty() && object.back() == '.') object.pop_back();
+    throw FieldError::Because(object, e.what());
   }
 }
 

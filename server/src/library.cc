@@ -80,11 +80,12 @@ RequestError InvalidArgumentFrom(const std::invalid_argument& e,
                                  const std::string& fallback_field,
                                  const std::string& prefix) {
   const auto* typed = dynamic_cast<const FieldError*>(&e);
-  const std::string field = typed != nullptr && !typed->field().empty()
-                                ? typed->field()
-                                : fallback_field;
+  const FieldError named = typed != nullptr && !typed->field().empty()
+                               ? *typed
+                               : FieldError(fallback_field, e.what());
+  const FieldError outer = named.Prefixed(prefix);  // the one prefix rule
   return RequestError(
-      StatusCode::kInvalidArgument, prefix + field, prefix + e.what());
+      StatusCode::kInvalidArgument, outer.field(), outer.what());
 }
 
 bool IsValidId(const std::string& id) {
