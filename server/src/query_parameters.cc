@@ -266,11 +266,25 @@ std::vector<RouteKey> RoutesWithDocumentedQueries() {
   return out;
 }
 
-bool TakesModelInputs(const std::string& method, const std::string& pattern) {
+bool TakesQueryParameter(const std::string& method,
+                         const std::string& pattern,
+                         const std::string& name) {
   const auto& params = QueryParametersOf(method, pattern);
-  return std::any_of(params.begin(), params.end(), [](const QueryParameter& q) {
-    return std::string(q.name) == kModelInputsParameter;
-  });
+  return std::any_of(params.begin(),
+                     params.end(),
+                     [&](const QueryParameter& q) { return name == q.name; });
+}
+
+bool TakesModelInputs(const std::string& method, const std::string& pattern) {
+  return TakesQueryParameter(method, pattern, kModelInputsParameter);
+}
+
+RequestError QueryParameterError(const std::string& name,
+                                 const std::string& why) {
+  const std::string shown = ShownText(name, 64);
+  return RequestError(StatusCode::kInvalidArgument,
+                      shown,
+                      "query parameter '" + shown + "' " + why);
 }
 
 void CheckQueryParameters(const HttpRequest& request,
@@ -282,31 +296,21 @@ void CheckQueryParameters(const HttpRequest& request,
        it = request.query.upper_bound(it->first)) {
     const std::size_t times = request.query.count(it->first);
     if (times > 1) {
-      const std::string shown = ShownText(it->first, 64);
-      throw RequestError(StatusCode::kInvalidArgument,
-                         shown,
-                         "query parameter '" + shown + "' is given " +
-                             std::to_string(times) + " times (give it once)");
+      throw QueryParameterError(
+          it->first,
+          "is given " + std::to_string(times) + " times (give it once)");
     }
   }
   if (TakesModelInputs(request.method, pattern)) return;
-  const auto& params = QueryParametersOf(request.method, pattern);
   for (const auto& entry : request.query) {
-    const std::string& key = entry.first;
-    const bool known =
-        std::any_of(params.begin(), params.end(), [&](const QueryParameter& q) {
-          return key == q.name;
-        });
-    if (known) continue;
+    if (TakesQueryParameter(request.method, pattern, entry.first)) continue;
     std::string allowed;
-    for (const QueryParameter& q : params)
-      allowed += (allowed.empty() ? "" : ", ") + std::string(q.name);
-    const std::string shown = ShownText(key, 64);
-    throw RequestError(StatusCode::kInvalidArgument,
-                       shown,
-                       "query parameter '" + shown +
-                           "' is not known here (allowed: " +
-                           (allowed.empty() ? "none" : allowed) + ")");
+    for (const std::string& name :
+         DocumentedQueryParameters(request.method, pattern))
+      allowed += (allowed.empty() ? "" : ", ") + name;
+    throw QueryParameterError(entry.first,
+                              "is not known here (allowed: " +
+                                  (allowed.empty() ? "none" : allowed) + ")");
   }
 }
 

@@ -1,4 +1,3 @@
-#include <algorithm>
 #include <cmath>
 
 #include "frictiond/server/auth.h"
@@ -84,19 +83,12 @@ std::shared_ptr<const CachedModel> ModelFor(FrictionLibrary& lib,
 
 InputValues ModelInputParams(const HttpRequest& req,
                              const StochasticFrictionModel& m) {
-  const std::vector<std::string> own =
-      DocumentedQueryParameters(req.method, req.route);
   InputValues out;
   for (const auto& [k, val] : req.query) {
-    if (std::find(own.begin(), own.end(), k) != own.end()) continue;
-    if (m.inputs.count(k) == 0 || k == "fn_n" || k == "v_mm_s") {
-      const std::string shown = ShownText(k, 64);
-      throw RequestError(
-          StatusCode::kInvalidArgument,
-          shown,
-          "query parameter '" + shown +
-              "' is not known here and not an input of this model");
-    }
+    if (TakesQueryParameter(req.method, req.route, k)) continue;
+    if (m.inputs.count(k) == 0 || k == "fn_n" || k == "v_mm_s")
+      throw QueryParameterError(
+          k, "is not known here and not an input of this model");
     out.emplace_back(k, ParseNumberParam(k, val));
   }
   return out;

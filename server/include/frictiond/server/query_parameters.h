@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "frictiond/server/http_server.h"
+#include "frictiond/server/request_error.h"
 
 namespace frictiond {
 
@@ -47,8 +48,19 @@ std::vector<std::string> DocumentedQueryParameters(const std::string& method,
 /// Every (method, pattern) the table names.
 std::vector<RouteKey> RoutesWithDocumentedQueries();
 
+/// True when the table lists `name` for the route.
+bool TakesQueryParameter(const std::string& method,
+                         const std::string& pattern,
+                         const std::string& name);
+
 /// True when the route takes the stored model's further inputs.
 bool TakesModelInputs(const std::string& method, const std::string& pattern);
+
+/// The error for a query name the request may not carry:
+/// RequestError(kInvalidArgument), the name (shown printable, at most 64
+/// characters) as its field, and "query parameter 'name' `why`".
+RequestError QueryParameterError(const std::string& name,
+                                 const std::string& why);
 
 /// Rejects, with RequestError(kInvalidArgument) and the name as its field,
 /// a query name given more than once ("query parameter 'x' is given 2 times
