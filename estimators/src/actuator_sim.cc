@@ -139,14 +139,13 @@ void ValidateActuatorLog(const ActuatorLog& log) {
   positive("dt", log.dt_s);
   const std::size_t n = log.q_rad.size();
   if (n < 2)
-    throw FieldError(
-        "entries", "entries: " + std::to_string(n) + " (must hold at least 2)");
+    throw FieldError::Because("entries",
+                              std::to_string(n) + " (must hold at least 2)");
   auto same = [&](const char* field, std::size_t m) {
     if (m != n)
-      throw FieldError(std::string("entries.") + field,
-                       std::string("entries.") + field + ": " +
-                           std::to_string(m) + " values for " +
-                           std::to_string(n) + " entries");
+      throw FieldError::Because(
+          std::string("entries.") + field,
+          std::to_string(m) + " values for " + std::to_string(n) + " entries");
   };
   same("timestamp", log.t_s.size());
   same("speed", log.dq_rad_s.size());
