@@ -517,18 +517,16 @@ int Main(int argc, char** argv) {
   r.goal = "< 110 % (growth < 10 %)";
   const double heap_growth_pct =
       100.0 * (heap.back().first - heap.front().first) / heap.front().first;
+  auto percent = [](double x) {
+    return std::isfinite(x)
+               ? nlohmann::json(RoundSignificant(x, 3)).dump() + " %"
+               : std::string("unknown");
+  };
   r.note =
       "peak RSS of the run's last quarter against its second quarter: growth " +
-      (std::isfinite(last_pct_of_second)
-           ? nlohmann::json(RoundSignificant(last_pct_of_second - 100.0, 3))
-                     .dump() +
-                 " %"
-           : std::string("unknown")) +
-      " (heap in use, 25 % to end: " +
-      (std::isfinite(heap_growth_pct)
-           ? nlohmann::json(RoundSignificant(heap_growth_pct, 3)).dump() + " %"
-           : std::string("unknown")) +
-      "); " + std::to_string(static_cast<int>(elapsed_s)) + " s mixed load, " +
+      percent(last_pct_of_second - 100.0) +
+      " (heap in use, 25 % to end: " + percent(heap_growth_pct) + "); " +
+      std::to_string(static_cast<int>(elapsed_s)) + " s mixed load, " +
       std::to_string(served.load()) + " requests, lost writes " +
       std::to_string(lost);
   PrintBenchLine(r);
