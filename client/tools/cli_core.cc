@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "frictiond/client/client.h"
+#include "frictiond/estimators/mu_admissibility.h"
 #include "frictiond/estimators/stochastic_model.h"
 #include "frictiond/proto/model_json.h"
 
@@ -215,12 +216,19 @@ void RegisterCoreCommands(CLI::App& app, Globals& g) {
         const ModelSet m = c.FetchModel(id);
         if (!m.stochastic)
           throw ClientError(200, "model has no stochastic family");
-        const MuPrediction p = PredictMu(*m.stochastic, fn, v);
+        MuPrediction p = PredictMu(*m.stochastic, fn, v);
+        // The daemon's rule (mu_admissibility.h): no mean mu below 0, the
+        // interval floored at 0.
+        const MeanMuCheck check =
+            CheckServableMu(*m.stochastic, {{"fn_n", fn}, {"v_mm_s", v}}, p);
+        if (!check.admissible) throw ClientError(422, check.why);
+        const bool floored = FloorAtZero(&p);
         json out = {{"material", id},
                     {"version", m.version},
                     {"mu", p.mu},
                     {"sigma", p.sigma},
                     {"interval95", {p.lo95, p.hi95}},
+                    {"floored_at_zero", floored},
                     {"extrapolated", p.extrapolated},
                     {"extrapolated_inputs", p.extrapolated_inputs}};
         std::cout << out.dump(2) << "\n";

@@ -112,7 +112,9 @@ SlidingSpeed PredictSlidingSpeed(const StochasticFrictionModel& model,
   const double b = (out.ratio - mu0 - CalcEpsQuantile(m, 0.025)) / out.b1;
   out.v_lo95_mm_s = std::min(a, b);
   out.v_hi95_mm_s = std::max(a, b);
-  out.below_model_range = out.v_mm_s < 0;
+  // No tangential force drives no sliding: Ft/Fn = 0 is not a sliding state
+  // whatever speed the line gives (where b0 + b2 Fn < 0 it gives v > 0).
+  out.below_model_range = out.v_mm_s < 0 || !(out.ratio > 0);
   out.extrapolated =
       IsOutside(model, "v_mm_s", out.v_mm_s) || IsOutside(model, "fn_n", fn_n);
   out.status = SlidingSpeedStatus::kOk;

@@ -1,5 +1,6 @@
 #include <cmath>
 
+#include "frictiond/estimators/number_text.h"
 #include "frictiond/server/auth.h"
 #include "frictiond/server/identification_json.h"
 #include "frictiond/server/metrics.h"
@@ -102,6 +103,18 @@ const StochasticFrictionModel& Stochastic(const CachedModel& m) {
                            " has no stochastic model");
   }
   return *m.set.stochastic;
+}
+
+void RequireServable(const MeanMuCheck& check,
+                     const InputValues& inputs,
+                     const std::string& what) {
+  if (check.admissible) return;
+  json given = json::object();
+  for (const auto& [name, value] : inputs) given[name] = value;
+  throw RequestError(StatusCode::kFailedPrecondition,
+                     check.field.empty() ? "model" : check.field,
+                     (what.empty() ? "" : what + ": ") + check.why,
+                     json{{"inputs", given}});
 }
 
 namespace {
@@ -360,7 +373,9 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
         InputValues inputs{{"fn_n", fn}, {"v_mm_s", v}};
         for (auto& input : ModelInputParams(req, m))
           inputs.push_back(std::move(input));
-        const MuPrediction p = PredictMu(m, inputs);
+        MuPrediction p = PredictMu(m, inputs);
+        RequireServable(CheckServableMu(m, inputs, p), inputs);
+        const bool floored = FloorAtZero(&p);
         return HttpResponse::Json(
             200,
             {{"material", model->set.material},
@@ -368,6 +383,7 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
              {"mu", p.mu},
              {"sigma", p.sigma},
              {"interval95", {p.lo95, p.hi95}},
+             {"floored_at_zero", floored},
              {"extrapolated", p.extrapolated},
              {"extrapolated_inputs", p.extrapolated_inputs},
              {"mu_coulomb", m.mu_coulomb}});
@@ -391,6 +407,13 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
                const StochasticFrictionModel& m = Stochastic(*model);
                const double L = CalcSlipLikelihood(m, fn, ft);
                const double r = ft / fn;
+               if (!std::isfinite(r))
+                 throw RequestError(StatusCode::kFailedPrecondition,
+                                    "ft_n",
+                                    "ft_n / fn_n = " + NumberText(ft) + " / " +
+                                        NumberText(fn) + " is not finite");
+               // Fn outside the fitted range: flagged as predict flags it.
+               const MuPrediction at = PredictMu(m, InputValues{{"fn_n", fn}});
                return HttpResponse::Json(
                    200,
                    {{"material", model->set.material},
@@ -398,7 +421,9 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
                     {"likelihood", L},
                     {"ratio", r},
                     {"method", m.likelihood.valid ? "sigmoid" : "eps_cdf"},
-                    {"coulomb_slips", r >= m.mu_coulomb}});
+                    {"coulomb_slips", r >= m.mu_coulomb},
+                    {"extrapolated", at.extrapolated},
+                    {"extrapolated_inputs", at.extrapolated_inputs}});
              });
   http.Route(
       "GET", "/v1/materials/{id}/grip-force", [&lib](const HttpRequest& req) {
@@ -447,6 +472,15 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
               "load_n",
               "no grip force holds load_n = " + std::to_string(load) +
                   " N at risk " + std::to_string(risk) + ": " + g.why);
+        }
+        if (!std::isfinite(g.fn_n) || !std::isfinite(g.fn_n_sd)) {
+          const bool at_speed = req.Query("v_mm_s").has_value();
+          throw RequestError(
+              StatusCode::kFailedPrecondition,
+              at_speed ? "v_mm_s" : "load_n",
+              "no finite grip force holds load_n = " + NumberText(load) +
+                  " N at v_mm_s = " + NumberText(options.v_mm_s) +
+                  ": the model's terms overflow there");
         }
         const double half = 1.959963984540054 * g.fn_n_sd;
         return HttpResponse::Json(

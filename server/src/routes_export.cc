@@ -112,9 +112,23 @@ const StochasticFrictionModel& StochasticNamingMaterial(const CachedModel& m) {
   return *m.set.stochastic;
 }
 
-json DistributionJson(const MuDistribution& d, double risk) {
+// The distribution of a model at `x`, as served: 422 when its mean may not
+// be (RequireServable), quantiles floored at 0 (*floored set when one
+// was below; mu_admissibility.h).
+MuDistribution ServableMuDistribution(const StochasticFrictionModel& m,
+                                      const InputValues& x,
+                                      const std::string& material,
+                                      bool* floored) {
+  MuDistribution d = CalcMuDistribution(m, x);
+  RequireServable(CheckServableMu(m, x, d), x, "material '" + material + "'");
+  *floored = FloorAtZero(&d) || *floored;
+  return d;
+}
+
+json DistributionJson(const MuDistribution& d, double risk, bool floored) {
   const SimFrictionValues v = CalcSimFrictionValues(d, risk);
   return {{"mu", d.mean},
+          {"floored_at_zero", floored},
           {"sigma", d.sigma},
           {"interval95", {d.Quantile(0.025), d.Quantile(0.975)}},
           {"risk", risk},
@@ -185,7 +199,9 @@ HttpResponse Export(FrictionLibrary& lib, const HttpRequest& req) {
                                     : std::string(op.fn_n ? "v_mm_s" : "fn_n") +
                                           " is the fitted mean");
   in.risk = risk;
-  in.mu = CalcMuDistribution(m, {{"fn_n", in.fn_n}, {"v_mm_s", in.v_mm_s}});
+  bool floored = false;
+  in.mu = ServableMuDistribution(
+      m, {{"fn_n", in.fn_n}, {"v_mm_s", in.v_mm_s}}, id, &floored);
   HttpResponse out{
       200, SimFormatContentType(format), FormatSimExport(format, in), {}};
   out.headers.emplace(
@@ -224,8 +240,9 @@ HttpResponse PairFriction(FrictionLibrary& lib, const HttpRequest& req) {
     CheckSupportedRisk(m, risk, mat);
     const double fn = op.fn_n ? *op.fn_n : FittedMean(m, "fn_n", mat);
     const double v = op.v_mm_s ? *op.v_mm_s : FittedMean(m, "v_mm_s", mat);
+    bool floored = false;
     const MuDistribution d =
-        CalcMuDistribution(m, {{"fn_n", fn}, {"v_mm_s", v}});
+        ServableMuDistribution(m, {{"fn_n", fn}, {"v_mm_s", v}}, mat, &floored);
     body["measured"] = true;
     body["source"] = ModelRef(*measured);
     body["rule"] = nullptr;
@@ -233,7 +250,7 @@ HttpResponse PairFriction(FrictionLibrary& lib, const HttpRequest& req) {
         {"fn_n", fn},
         {"v_mm_s", v},
         {"defaulted", {{"fn_n", !op.fn_n}, {"v_mm_s", !op.v_mm_s}}}};
-    body.update(DistributionJson(d, risk));
+    body.update(DistributionJson(d, risk, floored));
     body["note"] =
         "measured for this fingertip-object pair; no combine rule is used, "
         "sigma and quantiles are the model's predictive distribution";
@@ -276,8 +293,9 @@ HttpResponse PairFriction(FrictionLibrary& lib, const HttpRequest& req) {
                              : 0.5 * (FittedMean(sa, "v_mm_s", tip) +
                                       FittedMean(sb, "v_mm_s", object));
   const InputValues x{{"fn_n", fn}, {"v_mm_s", v}};
-  const MuDistribution da = CalcMuDistribution(sa, x);
-  const MuDistribution db = CalcMuDistribution(sb, x);
+  bool floored = false;
+  const MuDistribution da = ServableMuDistribution(sa, x, tip, &floored);
+  const MuDistribution db = ServableMuDistribution(sb, x, object, &floored);
   const MuDistribution d = CombineMuDistributions(da, db, rule);
   body["measured"] = false;
   body["rule"] = CombineRuleName(rule);
@@ -286,7 +304,7 @@ HttpResponse PairFriction(FrictionLibrary& lib, const HttpRequest& req) {
       {"fn_n", fn},
       {"v_mm_s", v},
       {"defaulted", {{"fn_n", !op.fn_n}, {"v_mm_s", !op.v_mm_s}}}};
-  body.update(DistributionJson(d, risk));
+  body.update(DistributionJson(d, risk, floored));
   json sides = json::array();
   for (const auto* side : {&ma, &mb}) {
     const MuDistribution& ds = side == &ma ? da : db;

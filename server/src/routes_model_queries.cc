@@ -12,6 +12,7 @@
 #include "frictiond/estimators/control.h"
 #include "frictiond/estimators/friction_forms.h"
 #include "frictiond/estimators/mu_windows.h"
+#include "frictiond/estimators/number_text.h"
 #include "frictiond/estimators/slip_likelihood.h"
 #include "frictiond/estimators/span_variability.h"
 #include "frictiond/proto/slip_likelihood_json.h"
@@ -44,17 +45,25 @@ HttpResponse HandleTargetForce(FrictionLibrary& lib, const HttpRequest& req) {
   const StochasticFrictionModel& m = Stochastic(*model);
   const InputValues cov = ModelInputParams(req, m);
   const TargetForce f = CalcTargetTangentialForce(m, fn, v, cov);
-  return HttpResponse::Json(200,
-                            {{"material", model->set.material},
-                             {"version", model->set.version},
-                             {"fn_n", fn},
-                             {"v_mm_s", v},
-                             {"ft_n", f.ft_n},
-                             {"mu", f.mu},
-                             {"interval95_n", {f.ft_lo95_n, f.ft_hi95_n}},
-                             {"extrapolated", f.extrapolated},
-                             {"extrapolated_inputs", f.extrapolated_inputs},
-                             {"equation", "paper 000 eq. (3)"}});
+  InputValues inputs{{"fn_n", fn}, {"v_mm_s", v}};
+  inputs.insert(inputs.end(), cov.begin(), cov.end());
+  RequireServable(CheckServableMu(m, inputs, PredictMu(m, inputs)), inputs);
+  // Ft = mu Fn >= 0: the bounds floored as mu's are (mu_admissibility.h).
+  const bool floored = f.ft_lo95_n < 0 || f.ft_hi95_n < 0;
+  return HttpResponse::Json(
+      200,
+      {{"material", model->set.material},
+       {"version", model->set.version},
+       {"fn_n", fn},
+       {"v_mm_s", v},
+       {"ft_n", f.ft_n},
+       {"mu", f.mu},
+       {"interval95_n",
+        {std::max(0.0, f.ft_lo95_n), std::max(0.0, f.ft_hi95_n)}},
+       {"floored_at_zero", floored},
+       {"extrapolated", f.extrapolated},
+       {"extrapolated_inputs", f.extrapolated_inputs},
+       {"equation", "paper 000 eq. (3)"}});
 }
 
 HttpResponse HandleSlidingSpeed(FrictionLibrary& lib, const HttpRequest& req) {
@@ -73,6 +82,13 @@ HttpResponse HandleSlidingSpeed(FrictionLibrary& lib, const HttpRequest& req) {
                        json{{"material", model->set.material},
                             {"version", model->set.version},
                             {"status", ToString(s.status)}});
+  }
+  if (!std::isfinite(s.ratio) || !std::isfinite(s.v_mm_s) ||
+      !std::isfinite(s.v_lo95_mm_s) || !std::isfinite(s.v_hi95_mm_s)) {
+    throw RequestError(StatusCode::kFailedPrecondition,
+                       "ft_n",
+                       "ft_n / fn_n = " + NumberText(ft) + " / " +
+                           NumberText(fn) + " gives no finite sliding speed");
   }
   return HttpResponse::Json(200,
                             {{"material", model->set.material},

@@ -22,6 +22,7 @@ class ModelQueryRoutesTest : public ::testing::Test {
   ModelQueryRoutesTest() : lib_(OpenStore(":memory:")) {
     RegisterCoreRoutes(http_, lib_);
     RegisterModelQueryRoutes(http_, lib_);
+    RegisterExportRoutes(http_, lib_);
     InstallQueryCheck(http_);  // as the daemon does
   }
   HttpResponse Get(const std::string& path,
@@ -56,6 +57,15 @@ class ModelQueryRoutesTest : public ::testing::Test {
     const json j = json::parse(r.body);
     EXPECT_EQ(j.value("field", ""), field) << r.body;
     EXPECT_NE(j.value("detail", "").find(field), std::string::npos) << r.body;
+  }
+  // 422 naming `field` (the answer of a valid request the model cannot
+  // serve).
+  void ExpectUnservable(const std::string& path,
+                        std::multimap<std::string, std::string> query,
+                        const std::string& field) {
+    const HttpResponse r = Get(path, std::move(query));
+    EXPECT_EQ(r.status, 422) << r.body;
+    EXPECT_EQ(json::parse(r.body).value("field", ""), field) << r.body;
   }
   FrictionLibrary lib_;
   HttpServer http_;
@@ -241,6 +251,74 @@ TEST_F(ModelQueryRoutesTest, ModelServesStrokeClusteredStandardErrors) {
               2.0 * mu["std_errors"][term].get<double>())
         << term << ": " << mu.dump();
   }
+}
+
+// mu = |Ft|/Fn >= 0 (mu_admissibility.h): a linear model whose terms carry
+// a trend below 0 is not served there, and a bound below 0 is floored.
+TEST_F(ModelQueryRoutesTest, NegativeMuIsNeverServed) {
+  testing::SimulationSpec spec;
+  spec.b2 = -0.15;  // mu 0.9 - 0.15 Fn + 0.004 v: below 0 past Fn ~ 6.5 N
+  Upload("soft", spec);
+  const json model = GetOk("/v1/materials/soft/model", {});
+  const json& c = model["stochastic"]["coefficients"];
+  const double b0 = c["intercept"].get<double>(),
+               b1 = c["v_mm_s"].get<double>(), b2 = c["fn_n"].get<double>();
+  ASSERT_LT(b2, -0.1) << c.dump();
+  const std::string predict = "/v1/materials/soft/predict";
+  // The mean below 0 (beyond the fitted Fn): 422 naming fn_n, the input
+  // whose move to its fitted mean raises mu (not v_mm_s, given too).
+  const double fn_negative = (-0.2 - b0 - b1 * 20) / b2;  // mean -0.2
+  for (const std::string& path :
+       {predict, std::string("/v1/materials/soft/target-force")}) {
+    ExpectUnservable(path,
+                     {{"fn_n", std::to_string(fn_negative)}, {"v_mm_s", "20"}},
+                     "fn_n");
+    // Terms that overflow: not finite, 422 (never 200 with null).
+    ExpectUnservable(path, {{"fn_n", "2"}, {"v_mm_s", "1e308"}}, "v_mm_s");
+  }
+  ExpectUnservable("/v1/materials/soft/export",
+                   {{"format", "mjcf"},
+                    {"risk", "0.05"},
+                    {"fn_n", std::to_string(fn_negative)},
+                    {"v_mm_s", "20"}},
+                   "fn_n");
+  // The mean just above 0: served, the interval floored at 0.
+  const double fn_small = (0.02 - b0 - b1 * 20) / b2;  // mean 0.02
+  const json p =
+      GetOk(predict, {{"fn_n", std::to_string(fn_small)}, {"v_mm_s", "20"}});
+  EXPECT_NEAR(p["mu"].get<double>(), 0.02, 1e-6) << p.dump();
+  EXPECT_EQ(p["interval95"][0].get<double>(), 0.0) << p.dump();
+  EXPECT_TRUE(p["floored_at_zero"].get<bool>()) << p.dump();
+  const json f = GetOk("/v1/materials/soft/target-force",
+                       {{"fn_n", std::to_string(fn_small)}, {"v_mm_s", "20"}});
+  EXPECT_EQ(f["interval95_n"][0].get<double>(), 0.0) << f.dump();
+  EXPECT_TRUE(f["floored_at_zero"].get<bool>()) << f.dump();
+  // Inside the data nothing is floored.
+  const json in = GetOk(predict, {{"fn_n", "2"}, {"v_mm_s", "40"}});
+  EXPECT_FALSE(in["floored_at_zero"].get<bool>()) << in.dump();
+  EXPECT_GT(in["interval95"][0].get<double>(), 0.0) << in.dump();
+  // No tangential force drives no sliding, even where the line's mu at rest
+  // (b0 + b2 Fn) is below 0 and so puts Ft = 0 at a positive speed.
+  const double fn_rest_negative = (-0.1 - b0) / b2;
+  const json s =
+      GetOk("/v1/materials/soft/sliding-speed",
+            {{"fn_n", std::to_string(fn_rest_negative)}, {"ft_n", "0"}});
+  EXPECT_GT(s["v_mm_s"].get<double>(), 0.0) << s.dump();
+  EXPECT_TRUE(s["below_model_range"].get<bool>()) << s.dump();
+  ExpectUnservable("/v1/materials/soft/sliding-speed",
+                   {{"fn_n", "1e-300"}, {"ft_n", "1e300"}},
+                   "ft_n");
+}
+
+TEST_F(ModelQueryRoutesTest, SlipLikelihoodFlagsExtrapolation) {
+  Upload("felt", {});  // Fn 0.5-4.5 N
+  const std::string path = "/v1/materials/felt/slip-likelihood";
+  const json in = GetOk(path, {{"fn_n", "2"}, {"ft_n", "1"}});
+  EXPECT_FALSE(in["extrapolated"].get<bool>()) << in.dump();
+  const json out = GetOk(path, {{"fn_n", "50"}, {"ft_n", "1"}});
+  EXPECT_TRUE(out["extrapolated"].get<bool>()) << out.dump();
+  EXPECT_EQ(out["extrapolated_inputs"], json::array({"fn_n"})) << out.dump();
+  ExpectUnservable(path, {{"fn_n", "1e-300"}, {"ft_n", "1e300"}}, "ft_n");
 }
 
 TEST_F(ModelQueryRoutesTest, UnknownMaterialIs404) {

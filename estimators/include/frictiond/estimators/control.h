@@ -78,7 +78,8 @@ struct SlidingSpeed {
   double b1_t = 0.0;  ///< b1 / SE(b1): below ~2 the speed is mostly noise
   /// v_mm_s < 0: the ratio lies below mu_hat(Fn, 0) when b1 > 0 (above it
   /// when b1 < 0), i.e. not a sliding state of the model; the contact is
-  /// expected to stick.
+  /// expected to stick. Also when Ft = 0 (no tangential force drives no
+  /// sliding), whatever v the line gives.
   bool below_model_range = false;
   bool extrapolated = false;  ///< v_mm_s or fn_n outside the fitted range
 };

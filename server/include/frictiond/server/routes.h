@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include "frictiond/estimators/mu_admissibility.h"
 #include "frictiond/server/http_server.h"
 #include "frictiond/server/library.h"
 #include "frictiond/server/recognition_hook.h"
@@ -83,5 +84,13 @@ InputValues ModelInputParams(const HttpRequest& req,
 /// The stochastic family of a served model; 422 (field "model") when the
 /// version has none.
 const StochasticFrictionModel& Stochastic(const CachedModel& m);
+
+/// 422 naming the input at fault when a model's answer at `inputs` may not
+/// be served (`check`: CheckServableMu, mu_admissibility.h: mu below 0 or
+/// not finite). `what` names the side in the message ("material 'a'")
+/// when a route serves more than one model; empty otherwise.
+void RequireServable(const MeanMuCheck& check,
+                     const InputValues& inputs,
+                     const std::string& what = "");
 
 }  // namespace frictiond

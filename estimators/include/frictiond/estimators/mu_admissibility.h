@@ -1,0 +1,68 @@
+#pragma once
+/// @file
+/// The one rule for serving a friction coefficient: mu = |Ft| / Fn is a
+/// ratio of magnitudes, so it is never below 0.
+///
+/// Eq. (1) of paper 000, mu = b0 + b1 v + b2 Fn + eps, is linear: where its
+/// terms carry a trend past where it holds, its mean or its quantiles go
+/// below 0. The bundled microtribometer trace is the example: b1 = 4.3 per
+/// mm/s is fitted on the reversal ramp (docs/diagnosis.md, "Real data"), so
+/// mu(v = 0) = -0.635, and the mean is below 0 for v < 0.148 mm/s although
+/// that lies inside the box of fitted speeds (0.10-0.26 mm/s: few samples
+/// below 0.2). Departure from the paper: the paper states no such bound; a
+/// service that hands a simulator or a controller mu < 0 hands it a force
+/// that pushes the motion along.
+///
+/// The rule, applied before a coefficient is served (predict, target-force,
+/// export, pairs; grip-force already refuses a quantile <= 0):
+/// - a mean mu that is not finite or below 0: the model is not valid at
+///   these inputs. CheckServableMu says so and names the input that moved
+///   it there: of the inputs given, the one whose move to its fitted mean
+///   raises mu the most, or first one whose move makes the answer finite
+///   (a transport answers 422 with that field).
+/// - a quantile or interval bound below 0 while the mean is >= 0: it is 0
+///   (the distribution of a non-negative quantity: where the model puts
+///   P(mu <= 0) >= p, the quantile at p is 0), and the answer says it was
+///   floored.
+///
+/// @code
+///   const InputValues x = {{"fn_n", 5.0}, {"v_mm_s", 0.1}};
+///   MuPrediction p = PredictMu(model, x);
+///   const MeanMuCheck c = CheckServableMu(model, x, p);
+///   if (!c.admissible) { /* c.field == "v_mm_s", c.why: the reason */ }
+///   const bool floored = FloorAtZero(&p);  // lo95, hi95 >= 0
+/// @endcode
+
+#include <string>
+
+#include "frictiond/estimators/contact_friction.h"
+#include "frictiond/estimators/stochastic_model.h"
+
+namespace frictiond {
+
+/// CheckServableMu's answer.
+struct MeanMuCheck {
+  bool admissible = true;
+  /// The given input that moved the answer out (empty when admissible, or
+  /// when no given input is the reason, e.g. a negative intercept alone).
+  std::string field;
+  std::string why;  ///< the reason, for a user (empty when admissible)
+};
+
+/// Whether PredictMu's answer `p` at `inputs` may be served: its mean is
+/// >= 0, and mean, sigma and interval are finite (terms can overflow for
+/// huge inputs).
+MeanMuCheck CheckServableMu(const StochasticFrictionModel& model,
+                            const InputValues& inputs,
+                            const MuPrediction& p);
+/// The same for CalcMuDistribution's answer (mean, sigma and quantiles).
+MeanMuCheck CheckServableMu(const StochasticFrictionModel& model,
+                            const InputValues& inputs,
+                            const MuDistribution& d);
+
+/// Floors the interval of `p` at 0; true when a bound was below 0.
+bool FloorAtZero(MuPrediction* p);
+/// Floors the quantiles of `d` at 0; true when one was below 0.
+bool FloorAtZero(MuDistribution* d);
+
+}  // namespace frictiond
