@@ -1,8 +1,11 @@
 #include "frictiond/estimators/breakaway.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+
+#include "frictiond/estimators/number_text.h"
 
 namespace frictiond {
 
@@ -34,7 +37,24 @@ double CalcHeldBristleDeflection(const LuGreTheta& theta,
     throw std::invalid_argument(
         "v_mm_s = " + std::to_string(v_mm_s) +
         " (sigma1 |v| / g(v) must be < 1 for a held state)");
-  return (mu_applied - (sigma1 + sigma2) * v_mm_s) / (sigma0 * damping);
+  const double z =
+      (mu_applied - (sigma1 + sigma2) * v_mm_s) / (sigma0 * damping);
+  // LuGre keeps |z| <= max_v g(v) / sigma0 = max(mu_s, mu_c) / sigma0 for
+  // every history that starts inside that bound (Canudas de Wit et al.
+  // 1995, Property 1): a deflection beyond it is no state a contact can
+  // reach. Held (v = 0) this says mu_applied <= mu_s: a larger Ft/Fn has
+  // already broken away.
+  const double g_max =
+      std::max(theta[LuGreIndex::kMuStatic], theta[LuGreIndex::kMuCoulomb]);
+  if (sigma0 * std::abs(z) > g_max * (1 + 1e-12))
+    throw std::invalid_argument(
+        "mu_applied = " + NumberText(mu_applied) +
+        " implies a bristle deflection with sigma0 |z| = " +
+        NumberText(sigma0 * std::abs(z)) +
+        " above the static ratio mu_s = " + NumberText(g_max) +
+        " (the LuGre bound |z| <= max g / sigma0): no contact holds it, it "
+        "has broken away already");
+  return z;
 }
 
 ForceDrivenResult PredictBreakawayRatioFromState(

@@ -271,6 +271,29 @@ TEST(BreakawayFromStateTest, ContinuesTheRampFromItsMeasuredState) {
   }
 }
 
+// LuGre's bound |z| <= max g / sigma0: a held contact cannot carry Ft/Fn
+// above mu_s (it has broken away), so no state is made up for it.
+TEST(BreakawayFromStateTest, HeldRatioAboveStaticIsNoState) {
+  const LuGreTheta theta = Truth();
+  const double mu_s = theta[LuGreIndex::kMuStatic];
+  EXPECT_NEAR(CalcHeldBristleDeflection(theta, mu_s, 0.0) *
+                  theta[LuGreIndex::kStiffness],
+              mu_s,
+              1e-12);
+  for (double ratio : {1.001, 1.2}) {
+    try {
+      CalcHeldBristleDeflection(theta, ratio * mu_s, 0.0);
+      ADD_FAILURE() << "held at " << ratio << " mu_s";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("mu_applied"), std::string::npos)
+          << e.what();
+    }
+    EXPECT_THROW(
+        PredictBreakawayRatioFromState(theta, ratio * mu_s, 0.0, 0.5, kFn),
+        std::invalid_argument);
+  }
+}
+
 // Acceleration-driven case (paper 001 Section II.B, Fig. 2a; Fig. 3 at
 // 3 m/s^3): the hand lifts a 0.2 kg object held at 20 N (Table I). Checked
 // against an independent fixed-step RK4 of the object's slip in the hand's

@@ -46,7 +46,9 @@ ForceDrivenResult PredictBreakawayRatio(
 /// and z = mu_e / sigma0 for a held object (v = 0). The deflection is not
 /// measured; this is the state the measured force implies.
 /// @throws std::invalid_argument for invalid theta, non-finite mu_applied or
-/// v_mm_s, or sigma1 |v| >= g(v) (no such equilibrium).
+/// v_mm_s, sigma1 |v| >= g(v) (no such equilibrium), or a deflection with
+/// sigma0 |z| > max(mu_s, mu_c) (beyond LuGre's bound on z: held, a
+/// mu_applied above mu_s has broken away already).
 double CalcHeldBristleDeflection(const LuGreTheta& theta,
                                  double mu_applied,
                                  double v_mm_s);
