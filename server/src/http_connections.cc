@@ -100,14 +100,34 @@ ConnectionStream::ConnectionStream(int fd,
       addresses_(addresses),
       buf_(std::move(buffered)),
       deadline_(deadline),
-      limits_(limits) {}
+      limits_(limits),
+      started_(SteadyClock::now()) {}
+
+int ConnectionStream::MillisUntilTooSlow() const {
+  // The rule holds while received_ >= rate * elapsed (after the grace): it
+  // fails at elapsed = max(grace, received_ / rate).
+  const double rate = limits_.min_body_bytes_per_s;
+  if (!(rate > 0)) return limits_.read_timeout_ms;
+  const double fail_ms =
+      std::max(static_cast<double>(limits_.min_rate_grace_ms),
+               1e3 * static_cast<double>(received_) / rate);
+  const double elapsed_ms =
+      std::chrono::duration<double, std::milli>(SteadyClock::now() - started_)
+          .count();
+  return static_cast<int>(
+      std::min(fail_ms - elapsed_ms, double{limits_.read_timeout_ms}));
+}
 
 ConnectionStream* ConnectionStream::Current() { return g_current_stream; }
 
 bool ConnectionStream::is_readable() const {
   if (pos_ < buf_.size()) return true;
-  return WaitFor(
-      fd_, POLLIN, std::min(limits_.read_timeout_ms, MillisUntil(deadline_)));
+  return WaitFor(fd_,
+                 POLLIN,
+                 std::max(0,
+                          std::min({limits_.read_timeout_ms,
+                                    MillisUntil(deadline_),
+                                    MillisUntilTooSlow()})));
 }
 
 bool ConnectionStream::is_writable() const {
@@ -122,13 +142,16 @@ ssize_t ConnectionStream::read(char* ptr, size_t size) {
     buf_.clear();
     pos_ = 0;
     if (failed_ || timed_out_) return -1;
-    const int wait_ms =
-        std::min(limits_.read_timeout_ms, MillisUntil(deadline_));
-    if (SteadyClock::now() >= deadline_ || !WaitFor(fd_, POLLIN, wait_ms)) {
-      // The client sent nothing for the read timeout, or the request
-      // deadline passed: no more reads, but the socket still carries the
-      // answer (408). Until stop 22 this set failed_, so the 408 was
-      // never written and the client saw the connection close.
+    const int wait_ms = std::min({limits_.read_timeout_ms,
+                                  MillisUntil(deadline_),
+                                  MillisUntilTooSlow()});
+    if (SteadyClock::now() >= deadline_ || wait_ms <= 0 ||
+        !WaitFor(fd_, POLLIN, wait_ms)) {
+      // The client sent nothing for the read timeout, the request deadline
+      // passed, or the body comes slower than the minimum rate: no more
+      // reads, but the socket still carries the answer (408). Until stop 22
+      // this set failed_, so the 408 was never written and the client saw
+      // the connection close.
       timed_out_ = true;
       return -1;
     }
@@ -141,6 +164,7 @@ ssize_t ConnectionStream::read(char* ptr, size_t size) {
       return n;
     }
     buf_.assign(chunk, static_cast<std::size_t>(n));
+    received_ += static_cast<std::size_t>(n);
   }
   const std::size_t n = std::min(size, buf_.size() - pos_);
   std::memcpy(ptr, buf_.data() + pos_, n);

@@ -18,7 +18,11 @@
 ///    the queue holds at most `max_queue` connections and at most
 ///    `max_connections` are open; beyond either the client gets 503 at once;
 ///  - a worker serves one request on a ConnectionStream whose reads stop at
-///    the whole-request deadline (`request_timeout_ms` from the first byte);
+///    the whole-request deadline (`request_timeout_ms` from the first byte)
+///    and, once the worker has waited `min_rate_grace_ms` for it, when the
+///    body arrives slower than `min_body_bytes_per_s` on average (a client
+///    that dribbled a 5,000-byte body one byte per 5 s held a worker for 70 s
+///    in an outside attack run; now about the grace);
 ///  - the answer is collected (up to kWriteBufferBytes) and sent with one
 ///    send() when the request is done (or before the stream next reads from
 ///    the socket, e.g. after "100 Continue"): httplib writes the status
@@ -54,6 +58,12 @@ struct ConnectionLimits {
   int write_timeout_ms = 10000;
   int keep_alive_timeout_ms = 5000;
   int keep_alive_max_count = 100000;
+  /// A body must arrive at least this fast on average, counted from when a
+  /// worker took the request, after a grace of `min_rate_grace_ms`: 16 KiB/s
+  /// moves the 16 MB body limit in about 17 minutes and any ordinary body
+  /// within the grace.
+  double min_body_bytes_per_s = 16384;
+  int min_rate_grace_ms = 2000;
 };
 
 /// The addresses of a connection's two ends, looked up once per connection
@@ -118,6 +128,11 @@ class ConnectionStream : public httplib::Stream {
   std::string out_;  ///< written, not yet sent
   SteadyClock::time_point deadline_;
   ConnectionLimits limits_;
+  SteadyClock::time_point started_;  ///< when the worker took the request
+  std::size_t received_ = 0;         ///< bytes read from the socket since
+  /// Milliseconds the next wait may take before the minimum body rate
+  /// (ConnectionLimits::min_body_bytes_per_s) is missed; <= 0: missed.
+  int MillisUntilTooSlow() const;
   bool timed_out_ = false;
   bool failed_ = false;
   bool close_after_ = false;

@@ -272,6 +272,10 @@ HttpServer::HttpServer(HttpOptions options)
   // length-less body whole, and inflate gzip without a limit).
   svr.set_pre_routing_handler([this](const httplib::Request& req,
                                      httplib::Response& res) {
+    // Range requests are not served: httplib would cut a JSON answer to
+    // the range (200 with 11 bytes of it, or 416 with no body; outside
+    // attack run). The Request is httplib's own non-const object.
+    const_cast<httplib::Request&>(req).ranges.clear();
     const std::string encoding = req.get_header_value("Content-Encoding");
     if (!encoding.empty() && encoding != "identity") {
       RejectAndClose(res,
@@ -441,17 +445,27 @@ HttpServer::HttpServer(HttpOptions options)
                          RequestLineIsValid(req) ? "header" : "request line");
           return httplib::Server::HandlerResponse::Handled;
         }
+        // Every other answer of the HTTP layer itself comes before the
+        // body was read: close after it, or the unread body would be read
+        // as the next request (an outside attack smuggled a PUT with its
+        // own token in the body of a request answered 414).
         std::string detail = "request rejected by the HTTP layer";
-        std::string field;
+        std::string field = "target";
         if (res.status == 413) {
           detail = "body larger than the limit (see --max-body-mb)";
           field = "body";
         } else if (res.status == 414) {
           detail = "request target longer than the limit";
-          field = "target";
+        } else if (res.status == 404) {
+          detail = "request target not routable (it decodes to no path)";
+        } else if (res.status == 416) {
+          // httplib answers an unparsable Range header before routing;
+          // a parsable one is ignored (pre-routing handler).
+          detail =
+              "Range header not understood (ranges are not served: omit it)";
+          field = "Range";
         }
-        res.set_content(ErrorJson(res.status, detail, field),
-                        "application/json");
+        RejectAndClose(res, res.status, detail, field);
         return httplib::Server::HandlerResponse::Handled;
       }));
   svr.set_exception_handler(
