@@ -95,6 +95,19 @@ TEST_F(ActuatorHttpTest, UploadFetchSimulateExport) {
   EXPECT_EQ(json::parse(res->body).value("field", ""),
             "logs[1].entries[7].goal_position")
       << res->body;
+  // "trajectory" not a string: 400 naming it (it was a 500, the route
+  // read it as a string; outside attack run).
+  for (const json t : {json(1), json(nullptr), json::array()}) {
+    json log = ShortLog("kp400_sin_sin", 300);
+    log["trajectory"] = t;
+    res = c->Post((base + "actuator-logs?joint=j1").c_str(),
+                  json{{"logs", {log}}}.dump(),
+                  "application/json");
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 400) << res->body;
+    EXPECT_EQ(json::parse(res->body).value("field", ""), "logs[0].trajectory")
+        << res->body;
+  }
   // 100,000 levels of nesting: one request used to crash the daemon (the
   // route serialised the parsed document recursively); now 400, daemon up.
   for (const char* route : {"actuator-logs?joint=j1"}) {

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "frictiond/estimators/field_error.h"
 #include "frictiond/proto/actuator_json.h"
 #include "frictiond/proto/actuator_report.h"
 #include "frictiond/proto/sim_export.h"
@@ -68,7 +69,14 @@ std::vector<ActuatorLog> ParseLogs(const std::string& body) {
   auto parse_one = [&](const json& x, const std::string& prefix) {
     try {
       ActuatorLog log = ActuatorLogFromJson(x);
-      log.name = LogName(x.value("trajectory", ""), log.kp);
+      // Optional; a non-string was a 500 (json type_error) before.
+      std::string trajectory;
+      if (const auto t = x.find("trajectory"); t != x.end()) {
+        if (!t->is_string())
+          throw FieldError::Because("trajectory", "must be a string");
+        trajectory = t->get<std::string>();
+      }
+      log.name = LogName(trajectory, log.kp);
       logs.push_back(std::move(log));
     } catch (const std::invalid_argument& e) {
       throw InvalidArgumentFrom(e, "log", prefix);

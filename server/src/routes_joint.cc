@@ -279,6 +279,20 @@ HttpResponse HandleFriction(FrictionLibrary& lib, const HttpRequest& req) {
                        body);
   }
   const MixedPrediction p = PredictMixed(f, st.s_um, st.load_n);
+  if (!std::isfinite(p.mu) || !std::isfinite(p.sigma) ||
+      !std::isfinite(p.alpha) || !std::isfinite(st.s_um)) {
+    // Never 200 with null numbers: the inputs overflow the model (e.g.
+    // load_n = 4.9e-324 or v_mm_s = 1e300). Named: the more extreme of the
+    // two (farther from 1 in orders of magnitude).
+    const bool load = std::abs(std::log10(st.load_n)) >=
+                      std::abs(std::log10(std::max(st.v_mm_s, 1e-300)));
+    throw RequestError(StatusCode::kFailedPrecondition,
+                       load ? "load_n" : "v_mm_s",
+                       "no finite prediction at v_mm_s = " + Num(st.v_mm_s) +
+                           ", load_n = " + Num(st.load_n) +
+                           " (Sommerfeld number " + Num(st.s_um) +
+                           " um): the model's terms overflow there");
+  }
   body["mu"] = p.mu;
   body["sigma"] = p.sigma;
   body["sigma_contact"] = p.sigma_contact;

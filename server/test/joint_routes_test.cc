@@ -207,6 +207,24 @@ TEST_F(JointRoutesTest, QueryParametersAreValidated) {
                     {"temp_c", "-300"}}),
               400,
               "temp_c");
+  // Valid but overflowing inputs: 422 naming the extreme one, never 200
+  // with null numbers (outside attack run).
+  ExpectField(Send("GET",
+                   path,
+                   {{"joint", "j2"},
+                    {"v_mm_s", "10"},
+                    {"load_n", "4.9e-324"},
+                    {"temp_c", "40"}}),
+              422,
+              "load_n");
+  ExpectField(Send("GET",
+                   path,
+                   {{"joint", "j2"},
+                    {"v_mm_s", "1e300"},
+                    {"load_n", "100"},
+                    {"temp_c", "40"}}),
+              422,
+              "v_mm_s");
 }
 
 TEST_F(JointRoutesTest, RobotRepeatabilityWithGivenAndModelledFriction) {
