@@ -506,7 +506,12 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
   // Pages newest first: ?limit= (1..1000, default 100) and ?after= (the
   // "next_after" of the previous page); "next_after" is null on the last.
   http.Route("GET", "/v1/identifications", [&lib](const HttpRequest& req) {
-    const bool open_only = req.QueryOr("open", "0") == "1";
+    const std::string open = req.QueryOr("open", "0");
+    if (open != "0" && open != "1" && open != "true" && open != "false")
+      throw RequestError(StatusCode::kInvalidArgument,
+                         "open",
+                         "open: must be 1, 0, true or false");
+    const bool open_only = open == "1" || open == "true";
     int limit = 100;
     if (auto v = req.Query("limit")) {
       const double x = ParseNumberParam("limit", *v);

@@ -321,6 +321,12 @@ TEST_F(ModelQueryRoutesTest, SlipLikelihoodFlagsExtrapolation) {
   ExpectUnservable(path, {{"fn_n", "1e-300"}, {"ft_n", "1e300"}}, "ft_n");
 }
 
+TEST_F(ModelQueryRoutesTest, IdentificationsOpenFlagIsValidated) {
+  ExpectBad("/v1/identifications", {{"open", "banana"}}, "open");
+  for (const char* v : {"0", "1", "true", "false"})
+    GetOk("/v1/identifications", {{"open", v}});
+}
+
 TEST_F(ModelQueryRoutesTest, UnknownMaterialIs404) {
   const HttpResponse r = Get("/v1/materials/nothing/target-force",
                              {{"fn_n", "1"}, {"v_mm_s", "3"}});
