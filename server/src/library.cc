@@ -482,6 +482,28 @@ IngestResult FrictionLibrary::IngestStrokes(const std::string& material,
   if (options.robot.size() > 128)
     throw RequestError(
         StatusCode::kInvalidArgument, "robot", "robot: at most 128 characters");
+  // 0. Memory: large uploads one at a time (LibraryOptions), refused
+  // before they are parsed.
+  struct LargeSlot {
+    std::atomic<int>* count = nullptr;
+    ~LargeSlot() {
+      if (count) --*count;
+    }
+  } large;
+  if (csv.size() > options_.large_upload_bytes) {
+    if (++large_uploads_ > options_.max_large_uploads) {
+      --large_uploads_;
+      throw RequestError(StatusCode::kUnavailable,
+                         "body",
+                         "body: " + std::to_string(csv.size()) +
+                             " bytes; another upload of more than " +
+                             std::to_string(options_.large_upload_bytes) +
+                             " bytes is being processed (at most " +
+                             std::to_string(options_.max_large_uploads) +
+                             " at once, for memory): retry when it is done");
+    }
+    large.count = &large_uploads_;
+  }
   // 1. Validate the upload completely before touching the store.
   StrokeData upload;
   try {

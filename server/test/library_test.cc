@@ -97,6 +97,32 @@ TEST_F(LibraryTest, NoSlipIsUnprocessableAndStoresNothing) {
   EXPECT_TRUE(lib_.store().ListStrokes("glass", "default").empty());
 }
 
+// Large uploads are processed at most max_large_uploads at once (memory);
+// one beyond is 503 naming the body before it is parsed, and stores
+// nothing; small uploads never wait for them. The slot is given back.
+TEST(LibraryLargeUploadTest, BeyondTheLimitIs503AndStoresNothing) {
+  const std::string small = SimulatedCsv(1, 2);
+  const std::string large = SimulatedCsv(2, 8);
+  LibraryOptions o;
+  o.large_upload_bytes = small.size();
+  ASSERT_GT(large.size(), o.large_upload_bytes);
+  o.max_large_uploads = 0;  // every large upload is one too many
+  FrictionLibrary none(OpenStore(":memory:"), o);
+  try {
+    none.IngestStrokes("felt", large, {});
+    FAIL() << "a large upload beyond the limit was accepted";
+  } catch (const RequestError& e) {
+    EXPECT_EQ(e.code(), StatusCode::kUnavailable);
+    EXPECT_EQ(e.field(), "body");
+  }
+  EXPECT_FALSE(none.store().GetMaterial("felt"));
+  EXPECT_EQ(none.IngestStrokes("felt", small, {}).version, 1);
+  o.max_large_uploads = 1;
+  FrictionLibrary one(OpenStore(":memory:"), o);
+  for (int version = 1; version <= 2; ++version)  // the slot comes back
+    EXPECT_EQ(one.IngestStrokes("felt", large, {}).version, version);
+}
+
 // Forces within the CSV rule (finite, > 0) but so large that eq. (1)'s
 // sums of squares overflow: refused naming the column that overflows, not
 // a fixed field (an outside attack with Fn ~ 1e200 N got "v_mm_s").

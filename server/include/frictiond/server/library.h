@@ -110,6 +110,15 @@ struct LibraryOptions {
   /// Stroke cache and bounded refit of IngestStrokes (ingestor.h); its
   /// max_samples_per_upload is taken from the field above.
   IngestorOptions ingest;
+  /// A stroke upload of more CSV bytes than this is "large": its parse,
+  /// labels, features and refit copy peak at about 25 bytes of memory per
+  /// CSV byte (an outside attack run: one 16 MB upload peaked at ~390 MB,
+  /// four at once took the daemon to 1.6 GB). At most
+  /// `max_large_uploads` are processed at once; one more is answered 503
+  /// (field "body", retry) before it is parsed. Smaller uploads, a robot's
+  /// ordinary strokes, never wait for them.
+  std::size_t large_upload_bytes = 1u << 20;
+  int max_large_uploads = 1;
 };
 
 /// Thread-safe service core. Not copyable or movable.
@@ -314,6 +323,8 @@ class FrictionLibrary {
   std::vector<std::pair<std::string, FamilyFitter>> fitters_;
   std::mutex listeners_mu_;
   std::vector<ModelListener> listeners_;
+  // Large uploads being processed (LibraryOptions::max_large_uploads).
+  std::atomic<int> large_uploads_{0};
   // Bumped by every invalidation: a store read that raced with one is not
   // cached (it may predate the change).
   std::atomic<std::uint64_t> cache_gen_{0};
