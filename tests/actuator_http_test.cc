@@ -97,7 +97,7 @@ TEST_F(ActuatorHttpTest, UploadFetchSimulateExport) {
       << res->body;
   // "trajectory" not a string: 400 naming it (it was a 500, the route
   // read it as a string; outside attack run).
-  for (const json t : {json(1), json(nullptr), json::array()}) {
+  for (const json& t : {json(1), json(nullptr), json::array()}) {
     json log = ShortLog("kp400_sin_sin", 300);
     log["trajectory"] = t;
     res = c->Post((base + "actuator-logs?joint=j1").c_str(),

@@ -114,8 +114,8 @@ int ConnectionStream::MillisUntilTooSlow() const {
   const double elapsed_ms =
       std::chrono::duration<double, std::milli>(SteadyClock::now() - started_)
           .count();
-  return static_cast<int>(
-      std::min(fail_ms - elapsed_ms, double{limits_.read_timeout_ms}));
+  return static_cast<int>(std::min(
+      fail_ms - elapsed_ms, static_cast<double>(limits_.read_timeout_ms)));
 }
 
 ConnectionStream* ConnectionStream::Current() { return g_current_stream; }
