@@ -193,6 +193,21 @@ class HostileHttpTest : public ::testing::Test {
 TempDir* HostileHttpTest::dir_ = nullptr;
 DaemonProcess* HostileHttpTest::daemon_ = nullptr;
 
+// Everything the daemon sends on `c` until it closes the connection;
+// fails the test when it is still open after 5 s.
+std::string ReadUntilClosed(RawConn& c) {
+  std::string all;
+  const auto until = Clock::now() + std::chrono::seconds(5);
+  while (Clock::now() < until && c.Readable(5000)) {
+    char buf[4096];
+    const ssize_t n = ::recv(c.fd(), buf, sizeof buf, 0);
+    if (n <= 0) break;  // closed: what we want
+    all.append(buf, static_cast<std::size_t>(n));
+  }
+  EXPECT_LT(Clock::now(), until) << "the connection stayed open";
+  return all;
+}
+
 void ExpectJsonError(int status, const std::string& body, int want) {
   EXPECT_EQ(status, want) << body.substr(0, 300);
   const json j = json::parse(body, nullptr, false);
@@ -339,15 +354,7 @@ TEST_F(HostileHttpTest, UnparsableRequestLineGetsOneAnswerAndClose) {
     ASSERT_TRUE(c.ok());
     ASSERT_TRUE(c.SendUnlessAnswered(
         line + "\r\nHost: x\r\nAccept: */*\r\nX-A: 1\r\n\r\n"));
-    std::string all;
-    const auto until = Clock::now() + std::chrono::seconds(5);
-    while (Clock::now() < until && c.Readable(5000)) {
-      char buf[4096];
-      const ssize_t n = ::recv(c.fd(), buf, sizeof buf, 0);
-      if (n <= 0) break;  // closed: what we want
-      all.append(buf, static_cast<std::size_t>(n));
-    }
-    EXPECT_LT(Clock::now(), until) << "the connection stayed open";
+    const std::string all = ReadUntilClosed(c);
     std::size_t answers = 0;
     for (std::size_t at = all.find("HTTP/1.1 "); at != std::string::npos;
          at = all.find("HTTP/1.1 ", at + 1))
@@ -450,15 +457,7 @@ TEST_F(HostileHttpTest, RejectedTargetClosesAndSmugglesNothing) {
       "POST /v1/materials/" + std::string(10240, 'x') +
       "/strokes HTTP/1.1\r\nHost: x\r\nContent-Length: " +
       std::to_string(smuggled.size()) + "\r\n\r\n" + smuggled));
-  std::string all;
-  const auto until = Clock::now() + std::chrono::seconds(5);
-  while (Clock::now() < until && c.Readable(5000)) {
-    char buf[4096];
-    const ssize_t n = ::recv(c.fd(), buf, sizeof buf, 0);
-    if (n <= 0) break;  // closed: what we want
-    all.append(buf, static_cast<std::size_t>(n));
-  }
-  EXPECT_LT(Clock::now(), until) << "the connection stayed open";
+  const std::string all = ReadUntilClosed(c);
   EXPECT_EQ(all.rfind("HTTP/1.1 414", 0), 0u) << all.substr(0, 300);
   EXPECT_EQ(all.find("HTTP/1.1 ", 1), std::string::npos) << all;
   EXPECT_NE(all.find("\"field\":\"target\""), std::string::npos) << all;
