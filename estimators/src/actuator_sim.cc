@@ -11,6 +11,7 @@
 
 #include "frictiond/estimators/field_error.h"
 #include "frictiond/estimators/least_squares.h"
+#include "frictiond/estimators/number_text.h"
 
 namespace frictiond {
 
@@ -21,12 +22,6 @@ constexpr int kLuGreSubsteps = 10;
 
 double Clip(double x, double lo, double hi) {
   return x < lo ? lo : (x > hi ? hi : x);
-}
-
-std::string Num(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", x);
-  return buf;
 }
 
 constexpr ActuatorParamInfo kParamInfo[] = {
@@ -128,9 +123,9 @@ ActuatorModel MakeDefaultActuatorModel(ActuatorFrictionLaw law) {
 void ValidateActuatorLog(const ActuatorLog& log) {
   auto positive = [](const char* field, double v) {
     if (!(v > 0) || !std::isfinite(v))
-      throw FieldError(
-          field,
-          std::string(field) + " = " + Num(v) + " (must be finite and > 0)");
+      throw FieldError(field,
+                       std::string(field) + " = " + NumberText(v) +
+                           " (must be finite and > 0)");
   };
   positive("mass", log.mass_kg);
   positive("length", log.length_m);
@@ -157,7 +152,7 @@ void ValidateActuatorLog(const ActuatorLog& log) {
       if (!std::isfinite(v[i]))
         throw FieldError("entries[" + std::to_string(i) + "]." + field,
                          "entries[" + std::to_string(i) + "]." + field + " = " +
-                             Num(v[i]) + " (must be finite)");
+                             NumberText(v[i]) + " (must be finite)");
   };
   finite("timestamp", log.t_s);
   finite("position", log.q_rad);
@@ -166,10 +161,11 @@ void ValidateActuatorLog(const ActuatorLog& log) {
   finite("temp", log.temp_c);
   for (std::size_t i = 1; i < n; ++i)
     if (!(log.t_s[i] > log.t_s[i - 1]))
-      throw FieldError(
-          "entries[" + std::to_string(i) + "].timestamp",
-          "entries[" + std::to_string(i) + "].timestamp = " + Num(log.t_s[i]) +
-              " (must be > the previous " + Num(log.t_s[i - 1]) + ")");
+      throw FieldError("entries[" + std::to_string(i) + "].timestamp",
+                       "entries[" + std::to_string(i) +
+                           "].timestamp = " + NumberText(log.t_s[i]) +
+                           " (must be > the previous " +
+                           NumberText(log.t_s[i - 1]) + ")");
 }
 
 ActuatorCommand CalcActuatorCommand(const ActuatorModel& m,

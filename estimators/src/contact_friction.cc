@@ -2,21 +2,15 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <stdexcept>
 
+#include "frictiond/estimators/number_text.h"
 #include "frictiond/estimators/stats.h"
 
 namespace frictiond {
 
 namespace {
-
-std::string Str(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", x);
-  return buf;
-}
 
 double Combine(CombineRule rule, double a, double b) {
   switch (rule) {
@@ -69,8 +63,8 @@ MuDistribution CalcMuDistribution(const StochasticFrictionModel& model,
 SimFrictionValues CalcSimFrictionValues(const MuDistribution& mu, double risk) {
   if (!(risk >= kMinSlipRisk && risk <= kMaxSlipRisk)) {
     throw std::invalid_argument(
-        "risk = " + Str(risk) + " (must be in [" + Str(kMinSlipRisk) + ", " +
-        Str(kMaxSlipRisk) +
+        "risk = " + NumberText(risk) + " (must be in [" +
+        NumberText(kMinSlipRisk) + ", " + NumberText(kMaxSlipRisk) +
         "]: the smallest stored quantile level is 0.001, and above 0.5 the "
         "range [Q(risk), Q(1 - risk)] would be inverted)");
   }

@@ -2,11 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <stdexcept>
 
 #include "frictiond/estimators/field_error.h"
+#include "frictiond/estimators/number_text.h"
 
 namespace frictiond {
 
@@ -26,18 +26,13 @@ constexpr double kGlWeight[4] = {0.3626837833783619830,
                                  0.1012285362903762591};
 constexpr int kGlPanels = 16;  // 16 panels x 8 nodes = 128 nodes
 
-std::string Num(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.6g", x);
-  return buf;
-}
-
 void Require(bool ok,
              const std::string& field,
              double value,
              const std::string& rule) {
   if (!ok)
-    throw FieldError(field, field + " = " + Num(value) + " (" + rule + ")");
+    throw FieldError(field,
+                     field + " = " + NumberText(value) + " (" + rule + ")");
 }
 
 }  // namespace
@@ -137,14 +132,16 @@ bool CheckTheta(const MixedFrictionTheta& t,
   };
   if (!t.allFinite()) return fail("theta", "theta has a non-finite entry");
   if (!(t[1] >= 0))
-    return fail("f_l", "f_l = " + Num(t[1]) + " (must be >= 0)");
+    return fail("f_l", "f_l = " + NumberText(t[1]) + " (must be >= 0)");
   if (!(t[0] >= t[1]))
     return fail("f_s",
-                "f_s = " + Num(t[0]) + " (must be >= f_l = " + Num(t[1]) + ")");
+                "f_s = " + NumberText(t[0]) +
+                    " (must be >= f_l = " + NumberText(t[1]) + ")");
   if (!(t[2] > 0))
-    return fail("d_ref_um", "d_ref_um = " + Num(t[2]) + " (must be > 0)");
+    return fail("d_ref_um",
+                "d_ref_um = " + NumberText(t[2]) + " (must be > 0)");
   if (!(t[3] > 0 && t[3] <= 3))
-    return fail("n", "n = " + Num(t[3]) + " (must be in (0, 3])");
+    return fail("n", "n = " + NumberText(t[3]) + " (must be in (0, 3])");
   return true;
 }
 

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <numeric>
 #include <random>
@@ -14,16 +13,11 @@
 #include "frictiond/estimators/field_error.h"
 #include "frictiond/estimators/least_squares.h"
 #include "frictiond/estimators/lugre.h"
+#include "frictiond/estimators/number_text.h"
 
 namespace frictiond {
 
 namespace {
-
-std::string Num(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.6g", x);
-  return buf;
-}
 
 double Quantile(std::vector<double> x, double q) {
   if (x.empty()) return std::numeric_limits<double>::quiet_NaN();
@@ -119,7 +113,7 @@ void ValidateJointData(const JointData& d) {
     auto bad = [&](const char* field, double x, const char* rule) {
       throw FieldError(field,
                        "sample " + std::to_string(i) + ": " + field + " = " +
-                           Num(x) + " (" + rule + ")");
+                           NumberText(x) + " (" + rule + ")");
     };
     if (!(d.v_mm_s[i] > 0 && std::isfinite(d.v_mm_s[i])))
       bad("v_mm_s", d.v_mm_s[i], "must be > 0 and finite");
@@ -232,8 +226,8 @@ JointFitResult FitJointModel(JointModelKind kind,
   ValidateSurface(config.surface);
   ValidateLubricant(config.lubricant);
   if (!(config.contact.area_mm2 > 0 && std::isfinite(config.contact.area_mm2)))
-    throw std::invalid_argument("area_mm2 = " + Num(config.contact.area_mm2) +
-                                " (must be > 0)");
+    throw std::invalid_argument(
+        "area_mm2 = " + NumberText(config.contact.area_mm2) + " (must be > 0)");
   if (!(options.max_iterations > 0))
     throw std::invalid_argument(
         "max_iterations = " + std::to_string(options.max_iterations) +
@@ -315,7 +309,7 @@ JointFitResult FitJointModel(JointModelKind kind,
   if (s.status == LeastSquaresStatus::kRankDeficient ||
       !(out.rcond >= options.min_rcond)) {
     out.status = JointFitStatus::kNotObservable;
-    out.why = "J^T J is rank deficient (rcond " + Num(out.rcond) +
+    out.why = "J^T J is rank deficient (rcond " + NumberText(out.rcond) +
               "): the data do not excite every parameter";
     out.P_theta = Eigen::MatrixXd::Zero(p, p);
     return out;

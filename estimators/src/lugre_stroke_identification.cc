@@ -5,7 +5,6 @@
 // (lugre_identification.h).
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <string>
 #include <utility>
@@ -14,6 +13,7 @@
 #include <Eigen/Cholesky>
 
 #include "frictiond/estimators/lugre_identification.h"
+#include "frictiond/estimators/number_text.h"
 #include "frictiond/estimators/preprocessing.h"
 
 namespace frictiond {
@@ -51,12 +51,6 @@ constexpr double kQuasiStaticNoiseRatio = 2.0;
 constexpr double kLm6NoiseRatio = 2.0;
 constexpr double kMaxLm6RelStd = 0.1;
 constexpr double kMinNoiseMu = 1e-4;  // floor of the noise estimate
-
-std::string Num(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.6g", x);
-  return buf;
-}
 
 double Sign(double x) { return x > 0 ? 1.0 : (x < 0 ? -1.0 : 0.0); }
 
@@ -482,14 +476,14 @@ LuGreIdentification Identify(const StrokeData& all) {
     if (r.fit.status != LuGreFitStatus::kConverged) {
       last_why = std::string(ToString(r.fit.status)) + ": " + r.fit.why;
     } else if (!(r.fit.residual_rms <= rms_limit)) {
-      last_why = "residual RMS " + Num(r.fit.residual_rms) + " > " +
-                 Num(kMaxRmsRatio) + " x quasi-static RMS " +
-                 Num(step1.residual_rms);
+      last_why = "residual RMS " + NumberText(r.fit.residual_rms) + " > " +
+                 NumberText(kMaxRmsRatio) + " x quasi-static RMS " +
+                 NumberText(step1.residual_rms);
     } else if (!(std::abs(r.fit.z0_mm - bounds.lower_bounds[6]) >
                      1e-6 * z0_span &&
                  std::abs(r.fit.z0_mm - bounds.upper_bounds[6]) >
                      1e-6 * z0_span)) {
-      last_why = "z0 = " + Num(r.fit.z0_mm) + " mm at its bound";
+      last_why = "z0 = " + NumberText(r.fit.z0_mm) + " mm at its bound";
     } else {
       fits.push_back(std::move(r));
     }
@@ -603,12 +597,13 @@ LuGreIdentification Identify(const StrokeData& all) {
     std::string premise =
         "the low-acceleration stroke is not quasi-static (paper 001 eq. 4): "
         "Step-1 residual RMS " +
-        Num(step1.residual_rms) + " is " + Num(step1.residual_rms / noise) +
-        " x the noise " + Num(noise) +
+        NumberText(step1.residual_rms) + " is " +
+        NumberText(step1.residual_rms / noise) + " x the noise " +
+        NumberText(noise) +
         " (second differences); the bristles relax over g/sigma0 ~ " +
-        Num(std::max(step1.theta[LuGreIndex::kMuStatic],
-                     step1.theta[LuGreIndex::kMuCoulomb]) /
-            family.theta[LuGreIndex::kStiffness]) +
+        NumberText(std::max(step1.theta[LuGreIndex::kMuStatic],
+                            step1.theta[LuGreIndex::kMuCoulomb]) /
+                   family.theta[LuGreIndex::kStiffness]) +
         " mm, so the slow stroke still shows hysteresis and " + two_step +
         "'s Stribeck parameters are biased";
     const Step2Fit* source = nullptr;
@@ -647,14 +642,16 @@ LuGreIdentification Identify(const StrokeData& all) {
           "cannot identify LuGre from these strokes: " + premise +
           "; LM-6 on the newest high-acceleration stroke: " +
           (lm6.status == LuGreFitStatus::kConverged
-               ? "RMS " + Num(lm6.residual_rms) + ", std/value mu_s " +
-                     Num(rel_std(LuGreIndex::kMuStatic)) + ", mu_c " +
-                     Num(rel_std(LuGreIndex::kMuCoulomb)) + ", v0 " +
-                     Num(rel_std(LuGreIndex::kStribeckVelocity)) + ", sigma1 " +
-                     Num(rel_std(LuGreIndex::kDamping)) + " (limits RMS " +
-                     Num(kLm6NoiseRatio) + " x noise, " + Num(kMaxLm6RelStd) +
-                     ", " + Num(kMaxLm6RelStd) + ", " + Num(2 * kMaxLm6RelStd) +
-                     ", " + Num(2 * kMaxLm6RelStd) + ")"
+               ? "RMS " + NumberText(lm6.residual_rms) + ", std/value mu_s " +
+                     NumberText(rel_std(LuGreIndex::kMuStatic)) + ", mu_c " +
+                     NumberText(rel_std(LuGreIndex::kMuCoulomb)) + ", v0 " +
+                     NumberText(rel_std(LuGreIndex::kStribeckVelocity)) +
+                     ", sigma1 " + NumberText(rel_std(LuGreIndex::kDamping)) +
+                     " (limits RMS " + NumberText(kLm6NoiseRatio) +
+                     " x noise, " + NumberText(kMaxLm6RelStd) + ", " +
+                     NumberText(kMaxLm6RelStd) + ", " +
+                     NumberText(2 * kMaxLm6RelStd) + ", " +
+                     NumberText(2 * kMaxLm6RelStd) + ")"
                : std::string(ToString(lm6.status)) + ": " + lm6.why) +
           "; record a slower low-acceleration stroke (its travel below 2 v0 "
           "must be many times g/sigma0)";
@@ -671,12 +668,13 @@ LuGreIdentification Identify(const StrokeData& all) {
     *note = premise +
             "; kept LM-6 on the newest high-acceleration stroke "
             "(RMS " +
-            Num(lm6.residual_rms) + ", std/value mu_s " +
-            Num(rel_std(LuGreIndex::kMuStatic)) + ", sigma1 " +
-            Num(rel_std(LuGreIndex::kDamping)) + ")";
+            NumberText(lm6.residual_rms) + ", std/value mu_s " +
+            NumberText(rel_std(LuGreIndex::kMuStatic)) + ", sigma1 " +
+            NumberText(rel_std(LuGreIndex::kDamping)) + ")";
   } else {
-    *note = "two-step " + two_step + ": Step-1 RMS " + Num(step1.residual_rms) +
-            " (noise " + Num(noise) + ")" +
+    *note = "two-step " + two_step + ": Step-1 RMS " +
+            NumberText(step1.residual_rms) + " (noise " + NumberText(noise) +
+            ")" +
             (family.variant == "lm2"
                  ? ", sigma1 free"
                  : ", sigma1 tied to sigma0 (LM-2 did not converge)");

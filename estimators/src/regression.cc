@@ -3,22 +3,16 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <stdexcept>
 
+#include "frictiond/estimators/number_text.h"
 #include "frictiond/estimators/simd.h"
 #include "frictiond/estimators/stats.h"
 
 namespace frictiond {
 
 namespace {
-
-std::string Fmt(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", x);
-  return buf;
-}
 
 bool EndsWith(std::string_view s, std::string_view suffix) {
   return s.size() >= suffix.size() &&
@@ -58,7 +52,7 @@ std::string Term::Name() const {
     case TermKind::kLinear:
       return input;
     case TermKind::kPower:
-      return input + "^" + Fmt(a);
+      return input + "^" + NumberText(a);
     case TermKind::kLog:
       return "log(" + input + ")";
     case TermKind::kSin:
@@ -66,18 +60,18 @@ std::string Term::Name() const {
     case TermKind::kCos:
       return "cos(" + input + ")";
     case TermKind::kExpDecay:
-      return "exp(-" + input + "/" + Fmt(a) + ")";
+      return "exp(-" + input + "/" + NumberText(a) + ")";
     case TermKind::kWindow:
-      return "in(" + input + "," + Fmt(a) + "," + Fmt(b) + ")";
+      return "in(" + input + "," + NumberText(a) + "," + NumberText(b) + ")";
     case TermKind::kHinge:
-      return "hinge(" + input + "," + Fmt(a) + ")";
+      return "hinge(" + input + "," + NumberText(a) + ")";
     case TermKind::kSinDeg:
       return "sind(" + input + ")";
     case TermKind::kCosDeg:
       return "cosd(" + input + ")";
     case TermKind::kOnsetDecay:
-      return "onset(" + input + "," + Fmt(a) +
-             (b == 1.0 ? std::string() : "," + Fmt(b)) + ")";
+      return "onset(" + input + "," + NumberText(a) +
+             (b == 1.0 ? std::string() : "," + NumberText(b)) + ")";
   }
   return "?";
 }

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <stdexcept>
 
 #include <Eigen/Cholesky>
@@ -11,18 +10,13 @@
 
 #include "frictiond/estimators/field_error.h"
 #include "frictiond/estimators/least_squares.h"
+#include "frictiond/estimators/number_text.h"
 
 namespace frictiond {
 
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-
-std::string Num(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.6g", x);
-  return buf;
-}
 
 // Transform of joint i at coordinate q: Rz(theta) Tz(d) Tx(a) Rx(alpha).
 Eigen::Isometry3d DhTransform(const DhJoint& j, double q) {
@@ -124,7 +118,8 @@ void ValidateArm(const SerialArm& arm) {
     const std::string at = "joints[" + std::to_string(i) + "].";
     auto finite = [&](double x, const char* f) {
       if (!std::isfinite(x))
-        throw FieldError(at + f, at + f + " = " + Num(x) + " (must be finite)");
+        throw FieldError(at + f,
+                         at + f + " = " + NumberText(x) + " (must be finite)");
     };
     finite(j.a_mm, "a_mm");
     finite(j.alpha_rad, "alpha");
@@ -133,15 +128,15 @@ void ValidateArm(const SerialArm& arm) {
     if (!(j.stiffness > 0 && std::isfinite(j.stiffness)))
       throw FieldError(
           at + "stiffness",
-          at + "stiffness = " + Num(j.stiffness) + " (must be > 0)");
+          at + "stiffness = " + NumberText(j.stiffness) + " (must be > 0)");
     if (!(j.sigma_tau >= 0 && std::isfinite(j.sigma_tau)))
       throw FieldError(
           at + "sigma_tau",
-          at + "sigma_tau = " + Num(j.sigma_tau) + " (must be >= 0)");
+          at + "sigma_tau = " + NumberText(j.sigma_tau) + " (must be >= 0)");
     if (!(j.q_min <= j.q_max))
       throw FieldError(at + "q_min",
-                       at + "q_min = " + Num(j.q_min) +
-                           " (must be <= q_max = " + Num(j.q_max) + ")");
+                       at + "q_min = " + NumberText(j.q_min) +
+                           " (must be <= q_max = " + NumberText(j.q_max) + ")");
   }
 }
 
@@ -179,7 +174,7 @@ double CalcChiSquareQuantile(int r, double c) {
   if (r < 1 || r > 3)
     throw std::invalid_argument("r = " + std::to_string(r) + " (must be 1..3)");
   if (!(c > 0 && c < 1))
-    throw std::invalid_argument("probability = " + Num(c) +
+    throw std::invalid_argument("probability = " + NumberText(c) +
                                 " (must be in (0, 1))");
   double lo = 0, hi = 1;
   while (ChiSquareCdf(r, hi) < c) hi *= 2;
@@ -194,7 +189,7 @@ Ellipsoid CalcRepeatabilityEllipsoid(const SerialArm& arm,
                                      const Eigen::Ref<const Eigen::VectorXd>& q,
                                      double probability) {
   if (!(probability > 0 && probability < 1))
-    throw std::invalid_argument("probability = " + Num(probability) +
+    throw std::invalid_argument("probability = " + NumberText(probability) +
                                 " (must be in (0, 1))");
   Ellipsoid e;
   e.P_x = CalcPositionCovariance(arm, q);
@@ -270,7 +265,8 @@ IkResult SolvePositionIk(const SerialArm& arm,
   out.iterations = it;
   out.converged = out.error_mm <= tolerance_mm;
   if (!out.converged)
-    out.why = "target not reached (remaining error " + Num(out.error_mm) +
+    out.why = "target not reached (remaining error " +
+              NumberText(out.error_mm) +
               " mm): outside the workspace or joint limits";
   return out;
 }

@@ -2,10 +2,10 @@
 
 #include <charconv>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <vector>
 
+#include "frictiond/estimators/number_text.h"
 #include "frictiond/estimators/preprocessing.h"
 
 namespace frictiond {
@@ -61,12 +61,6 @@ std::string Quote(std::string_view s) {
   }
   if (s.size() > 40) out += "...";
   return "'" + out + "'";
-}
-
-std::string Num(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", x);
-  return buf;
 }
 
 }  // namespace
@@ -254,7 +248,9 @@ StrokeData ParseStrokeCsv(std::string_view text,
         case Role::kSlip:
           if (!(x == 0 || x == 1))
             throw StrokeCsvError(
-                line_no, spec.name, "slip = " + Num(x) + " (must be 0 or 1)");
+                line_no,
+                spec.name,
+                "slip = " + NumberText(x) + " (must be 0 or 1)");
           data.slip.push_back(static_cast<int>(x));
           break;
         case Role::kStroke:
@@ -262,7 +258,7 @@ StrokeData ParseStrokeCsv(std::string_view text,
             throw StrokeCsvError(
                 line_no,
                 spec.name,
-                "stroke = " + Num(x) + " (must be an integer)");
+                "stroke = " + NumberText(x) + " (must be an integer)");
           }
           data.stroke.push_back(static_cast<int>(x));
           break;
@@ -280,7 +276,7 @@ StrokeData ParseStrokeCsv(std::string_view text,
       throw StrokeCsvError(
           line_no,
           bad->field,
-          bad->field + " = " + Num(bad->value) + " (" +
+          bad->field + " = " + NumberText(bad->value) + " (" +
               (bad->bound.empty() ? bad->rule : "must be " + bad->bound) + ")");
     }
     last_t = data.t_s.back();

@@ -8,6 +8,7 @@
 
 #include "frictiond/estimators/actuator_friction.h"
 #include "frictiond/estimators/field_error.h"
+#include "frictiond/estimators/number_text.h"
 #include "frictiond/proto/json_parse.h"
 
 namespace frictiond {
@@ -17,12 +18,6 @@ using json = nlohmann::json;
 namespace {
 
 constexpr int kMaxDepth = 8;
-
-std::string Num(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", x);
-  return buf;
-}
 
 json ParseBounded(std::string_view text, const char* what) {
   if (text.size() > kMaxActuatorLogBytes)
@@ -41,7 +36,8 @@ double Number(const json& obj,
   if (!it->is_number()) throw FieldError::Because(field, "must be a number");
   const double v = it->get<double>();
   if (!std::isfinite(v))
-    throw FieldError(field, field + " = " + Num(v) + " (must be finite)");
+    throw FieldError(field,
+                     field + " = " + NumberText(v) + " (must be finite)");
   return v;
 }
 
@@ -107,10 +103,11 @@ ActuatorLog ActuatorLogFromJson(const json& j, const std::string& name) {
   }
   for (std::size_t i = 1; i < n; ++i)
     if (!(log.t_s[i] > log.t_s[i - 1]))
-      throw FieldError(
-          "entries[" + std::to_string(i) + "].timestamp",
-          "entries[" + std::to_string(i) + "].timestamp = " + Num(log.t_s[i]) +
-              " (must be > the previous " + Num(log.t_s[i - 1]) + ")");
+      throw FieldError("entries[" + std::to_string(i) + "].timestamp",
+                       "entries[" + std::to_string(i) +
+                           "].timestamp = " + NumberText(log.t_s[i]) +
+                           " (must be > the previous " +
+                           NumberText(log.t_s[i - 1]) + ")");
   if (!has_dt && n >= 2) {
     std::vector<double> steps(n - 1);
     for (std::size_t i = 1; i < n; ++i)
@@ -160,9 +157,10 @@ ActuatorModel ActuatorModelFromJson(const json& j) {
         Number(*params, info.name, std::string("params.") + info.name);
     if (!(v >= info.lo && v <= info.hi))
       throw FieldError(std::string("params.") + info.name,
-                       std::string("params.") + info.name + " = " + Num(v) +
-                           " (must be in [" + Num(info.lo) + ", " +
-                           Num(info.hi) + "])");
+                       std::string("params.") + info.name + " = " +
+                           NumberText(v) + " (must be in [" +
+                           NumberText(info.lo) + ", " + NumberText(info.hi) +
+                           "])");
     ActuatorParamRef(m, p) = v;
   }
   return m;
@@ -201,12 +199,13 @@ ActuatorModel ParseBamParams(std::string_view text) {
     ActuatorParamRef(m, p) = v;
   }
   if (!(m.kt > 0))
-    throw FieldError("kt", "kt = " + Num(m.kt) + " (must be > 0)");
+    throw FieldError("kt", "kt = " + NumberText(m.kt) + " (must be > 0)");
   if (!(m.r_ohm > 0))
-    throw FieldError("R", "R = " + Num(m.r_ohm) + " (must be > 0)");
+    throw FieldError("R", "R = " + NumberText(m.r_ohm) + " (must be > 0)");
   if (!(m.armature_kg_m2 >= 0))
-    throw FieldError("armature",
-                     "armature = " + Num(m.armature_kg_m2) + " (must be >= 0)");
+    throw FieldError(
+        "armature",
+        "armature = " + NumberText(m.armature_kg_m2) + " (must be >= 0)");
   if (model == "m3" || model == "m4") {
     // BAM's M3 has no Stribeck term; M4 does (load_friction_stribeck).
     if (model == "m3") m.friction.friction_stribeck = 0;

@@ -1,13 +1,13 @@
 #include "frictiond/proto/joint_json.h"
 
 #include <cmath>
-#include <cstdio>
 #include <cstdlib>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
 
 #include "frictiond/estimators/field_error.h"
+#include "frictiond/estimators/number_text.h"
 
 namespace frictiond {
 
@@ -17,12 +17,6 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kDeg = kPi / 180.0;
-
-std::string Num(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.6g", x);
-  return buf;
-}
 
 [[noreturn]] void Bad(const std::string& field, const std::string& why) {
   throw FieldError::Because(field, why);
@@ -213,9 +207,9 @@ void JointConfigFromJson(const json& j, JointConfig* c, WearParams* w) {
     Number(j["contact"], "area_mm2", "contact.", &c->contact.area_mm2);
   }
   if (!(c->contact.area_mm2 > 0))
-    throw FieldError(
-        "contact.area_mm2",
-        "contact.area_mm2 = " + Num(c->contact.area_mm2) + " (must be > 0)");
+    throw FieldError("contact.area_mm2",
+                     "contact.area_mm2 = " + NumberText(c->contact.area_mm2) +
+                         " (must be > 0)");
   if (j.contains("lubricant")) {
     const json& l = j["lubricant"];
     if (!l.is_object()) Bad("lubricant", "must be an object");
@@ -231,12 +225,13 @@ void JointConfigFromJson(const json& j, JointConfig* c, WearParams* w) {
     Number(x, "hardness_mpa", "wear.", &w->hardness_mpa);
   }
   if (!(w->k_solid >= 0))
-    throw FieldError("wear.k_solid",
-                     "wear.k_solid = " + Num(w->k_solid) + " (must be >= 0)");
-  if (!(w->hardness_mpa > 0))
     throw FieldError(
-        "wear.hardness_mpa",
-        "wear.hardness_mpa = " + Num(w->hardness_mpa) + " (must be > 0)");
+        "wear.k_solid",
+        "wear.k_solid = " + NumberText(w->k_solid) + " (must be >= 0)");
+  if (!(w->hardness_mpa > 0))
+    throw FieldError("wear.hardness_mpa",
+                     "wear.hardness_mpa = " + NumberText(w->hardness_mpa) +
+                         " (must be > 0)");
 }
 
 json JointFamilyToJson(const JointFamily& f) {
@@ -362,7 +357,7 @@ JointData ParseJointCsv(const std::string& text,
         throw FieldError(header[static_cast<std::size_t>(c)],
                          "line " + std::to_string(line_no) + ": " +
                              header[static_cast<std::size_t>(c)] + " = " +
-                             Num(x) + " (must be > 0)");
+                             NumberText(x) + " (must be > 0)");
       return x;
     };
     d.v_mm_s.push_back(positive(c_v));
@@ -376,7 +371,7 @@ JointData ParseJointCsv(const std::string& text,
       if (!(eta > 0 && std::isfinite(eta)))
         throw FieldError("temp_c",
                          "line " + std::to_string(line_no) +
-                             ": temp_c = " + Num(d.temp_c.back()) +
+                             ": temp_c = " + NumberText(d.temp_c.back()) +
                              " (outside the lubricant's Vogel range)");
       d.eta_pa_s.push_back(eta);
     }
@@ -453,8 +448,9 @@ RobotDescription RobotFromJson(const json& j) {
             {fr.load_n, "load_n"},
             {fr.radius_mm, "radius_mm"}})
         if (!(v > 0))
-          throw FieldError(fat + name,
-                           fat + name + " = " + Num(v) + " (must be > 0)");
+          throw FieldError(
+              fat + name,
+              fat + name + " = " + NumberText(v) + " (must be > 0)");
       ref = fr;
     }
     r.arm.joints.push_back(dh);

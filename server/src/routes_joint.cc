@@ -14,7 +14,6 @@
 // Shapes and rules: docs/joint.md.
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <optional>
 #include <string>
@@ -22,6 +21,7 @@
 
 #include "frictiond/estimators/joint_friction.h"
 #include "frictiond/estimators/joint_identification.h"
+#include "frictiond/estimators/number_text.h"
 #include "frictiond/estimators/repeatability.h"
 #include "frictiond/proto/joint_json.h"
 #include "frictiond/server/model_lookup.h"
@@ -37,18 +37,12 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr std::size_t kMaxJointRows = 200000;
 constexpr int kMinJointSamples = 10;
 
-std::string Num(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.6g", x);
-  return buf;
-}
-
 double PositiveParam(const HttpRequest& req, const std::string& name) {
   const double x = req.RequireNumber(name);
   if (!(x > 0))
     throw RequestError(StatusCode::kInvalidArgument,
                        name,
-                       name + " = " + Num(x) + " (must be > 0)");
+                       name + " = " + NumberText(x) + " (must be > 0)");
   return x;
 }
 
@@ -94,24 +88,26 @@ HttpResponse HandleUpload(FrictionLibrary& lib, const HttpRequest& req) {
   double folds = 5;
   OptionalParam(req, "folds", &folds);
   if (!(folds >= 2 && folds <= 20 && folds == std::floor(folds)))
-    throw RequestError(StatusCode::kInvalidArgument,
-                       "folds",
-                       "folds = " + Num(folds) + " (must be an integer 2..20)");
+    throw RequestError(
+        StatusCode::kInvalidArgument,
+        "folds",
+        "folds = " + NumberText(folds) + " (must be an integer 2..20)");
   if (!(c.contact.area_mm2 > 0))
     throw RequestError(
         StatusCode::kInvalidArgument,
         "area_mm2",
-        "area_mm2 = " + Num(c.contact.area_mm2) + " (must be > 0)");
+        "area_mm2 = " + NumberText(c.contact.area_mm2) + " (must be > 0)");
   if (!(family.wear.k_solid >= 0))
     throw RequestError(
         StatusCode::kInvalidArgument,
         "k_solid",
-        "k_solid = " + Num(family.wear.k_solid) + " (must be >= 0)");
+        "k_solid = " + NumberText(family.wear.k_solid) + " (must be >= 0)");
   if (!(family.wear.hardness_mpa > 0))
     throw RequestError(
         StatusCode::kInvalidArgument,
         "hardness_mpa",
-        "hardness_mpa = " + Num(family.wear.hardness_mpa) + " (must be > 0)");
+        "hardness_mpa = " + NumberText(family.wear.hardness_mpa) +
+            " (must be > 0)");
   JointData data;
   try {
     ValidateSurface(c.surface);
@@ -205,7 +201,7 @@ JointQueryState ParseState(const HttpRequest& req, const JointConfig& c) {
     if (!(s.eta_pa_s > 0 && std::isfinite(s.eta_pa_s)))
       throw RequestError(StatusCode::kInvalidArgument,
                          "temp_c",
-                         "temp_c = " + Num(s.temp_c) +
+                         "temp_c = " + NumberText(s.temp_c) +
                              " (outside the lubricant's Vogel range)");
   } else {
     throw RequestError(StatusCode::kInvalidArgument,
@@ -286,12 +282,12 @@ HttpResponse HandleFriction(FrictionLibrary& lib, const HttpRequest& req) {
     // two (farther from 1 in orders of magnitude).
     const bool load = std::abs(std::log10(st.load_n)) >=
                       std::abs(std::log10(std::max(st.v_mm_s, 1e-300)));
-    throw RequestError(StatusCode::kFailedPrecondition,
-                       load ? "load_n" : "v_mm_s",
-                       "no finite prediction at v_mm_s = " + Num(st.v_mm_s) +
-                           ", load_n = " + Num(st.load_n) +
-                           " (Sommerfeld number " + Num(st.s_um) +
-                           " um): the model's terms overflow there");
+    throw RequestError(
+        StatusCode::kFailedPrecondition,
+        load ? "load_n" : "v_mm_s",
+        "no finite prediction at v_mm_s = " + NumberText(st.v_mm_s) +
+            ", load_n = " + NumberText(st.load_n) + " (Sommerfeld number " +
+            NumberText(st.s_um) + " um): the model's terms overflow there");
   }
   body["mu"] = p.mu;
   body["sigma"] = p.sigma;
@@ -320,7 +316,7 @@ HttpResponse HandleWear(FrictionLibrary& lib, const HttpRequest& req) {
     throw RequestError(
         StatusCode::kInvalidArgument,
         "points",
-        "points = " + Num(points) + " (must be an integer 2..1000)");
+        "points = " + NumberText(points) + " (must be an integer 2..1000)");
   if (!Usable(f.mixed))
     throw RequestError(StatusCode::kFailedPrecondition,
                        "joint",
@@ -423,9 +419,10 @@ double Probability(const HttpRequest& req) {
   double c = 0.95;
   OptionalParam(req, "probability", &c);
   if (!(c > 0 && c < 1))
-    throw RequestError(StatusCode::kInvalidArgument,
-                       "probability",
-                       "probability = " + Num(c) + " (must be in (0, 1))");
+    throw RequestError(
+        StatusCode::kInvalidArgument,
+        "probability",
+        "probability = " + NumberText(c) + " (must be in (0, 1))");
   return c;
 }
 
@@ -441,8 +438,9 @@ HttpResponse HandleRepeatability(FrictionLibrary& lib, const HttpRequest& req) {
   if (!ik.converged)
     throw RequestError(StatusCode::kFailedPrecondition,
                        "x_mm",
-                       "(" + Num(target[0]) + ", " + Num(target[1]) + ", " +
-                           Num(target[2]) + ") mm: " + ik.why);
+                       "(" + NumberText(target[0]) + ", " +
+                           NumberText(target[1]) + ", " +
+                           NumberText(target[2]) + ") mm: " + ik.why);
   const Ellipsoid e = CalcRepeatabilityEllipsoid(robot.arm, ik.q, c);
   json q = json::array();
   for (Eigen::Index i = 0; i < ik.q.size(); ++i) {
@@ -480,13 +478,14 @@ HttpResponse HandleGrid(FrictionLibrary& lib, const HttpRequest& req) {
   OptionalParam(req, "size_mm", &size);
   OptionalParam(req, "n", &n);
   if (!(size > 0 && size <= 1e5))
-    throw RequestError(StatusCode::kInvalidArgument,
-                       "size_mm",
-                       "size_mm = " + Num(size) + " (must be in (0, 1e5])");
+    throw RequestError(
+        StatusCode::kInvalidArgument,
+        "size_mm",
+        "size_mm = " + NumberText(size) + " (must be in (0, 1e5])");
   if (!(n >= 2 && n <= 100 && n == std::floor(n)))
     throw RequestError(StatusCode::kInvalidArgument,
                        "n",
-                       "n = " + Num(n) + " (must be an integer 2..100)");
+                       "n = " + NumberText(n) + " (must be an integer 2..100)");
   const double c = Probability(req);
   RobotDescription robot = LoadRobot(lib, id);
   const json sources = ResolveFriction(lib, &robot);

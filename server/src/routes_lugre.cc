@@ -6,13 +6,13 @@
 // break-away friction ratio route GET /v1/materials/{id}/breakaway.
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "frictiond/estimators/breakaway.h"
 #include "frictiond/estimators/lugre_identification.h"
+#include "frictiond/estimators/number_text.h"
 #include "frictiond/proto/lugre_json.h"
 #include "frictiond/server/routes.h"
 
@@ -22,20 +22,15 @@ using nlohmann::json;
 
 namespace {
 
-std::string Num(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.6g", x);
-  return buf;
-}
-
 double PositiveParam(const HttpRequest& req,
                      const std::string& name,
                      const std::string& unit) {
   const double x = req.RequireNumber(name);
   if (!(x > 0))
-    throw RequestError(StatusCode::kInvalidArgument,
-                       name,
-                       name + " = " + Num(x) + " (must be > 0" + unit + ")");
+    throw RequestError(
+        StatusCode::kInvalidArgument,
+        name,
+        name + " = " + NumberText(x) + " (must be > 0" + unit + ")");
   return x;
 }
 
@@ -46,10 +41,10 @@ HttpResponse HandleBreakaway(FrictionLibrary& lib, const HttpRequest& req) {
   if (req.Query("mass_kg")) {
     options.mass_kg = PositiveParam(req, "mass_kg", " [kg]");
     if (!(options.mass_kg <= 1e4))
-      throw RequestError(
-          StatusCode::kInvalidArgument,
-          "mass_kg",
-          "mass_kg = " + Num(options.mass_kg) + " (must be <= 10000 [kg])");
+      throw RequestError(StatusCode::kInvalidArgument,
+                         "mass_kg",
+                         "mass_kg = " + NumberText(options.mass_kg) +
+                             " (must be <= 10000 [kg])");
   }
   const auto model = ModelFor(lib, req);
   const std::string& id = model->set.material;
@@ -82,7 +77,7 @@ HttpResponse HandleBreakaway(FrictionLibrary& lib, const HttpRequest& req) {
       throw RequestError(
           StatusCode::kInvalidArgument,
           "mu_applied",
-          "mu_applied = " + Num(*mu_applied) + " (must be >= 0)");
+          "mu_applied = " + NumberText(*mu_applied) + " (must be >= 0)");
   }
   if (req.Query("v_mm_s")) {
     if (!mu_applied)
@@ -102,8 +97,8 @@ HttpResponse HandleBreakaway(FrictionLibrary& lib, const HttpRequest& req) {
       throw RequestError(
           StatusCode::kFailedPrecondition,
           "mu_applied",
-          std::string("mu_applied = ") + Num(*mu_applied) +
-              ", v_mm_s = " + Num(v_mm_s) +
+          std::string("mu_applied = ") + NumberText(*mu_applied) +
+              ", v_mm_s = " + NumberText(v_mm_s) +
               ": no state of the stored LuGre model: " + e.what());
     }
   } else {
