@@ -72,10 +72,25 @@ MeanMuCheck CheckServableMu(const StochasticFrictionModel& model,
   return Check(model, inputs, d.mean, finite);
 }
 
+MeanMuCheck CheckServableMu(const StochasticFrictionModel& model,
+                            const InputValues& inputs,
+                            const TargetForce& f) {
+  const bool finite = std::isfinite(f.mu) && std::isfinite(f.ft_n) &&
+                      std::isfinite(f.ft_lo95_n) && std::isfinite(f.ft_hi95_n);
+  return Check(model, inputs, f.mu, finite);
+}
+
 bool FloorAtZero(MuPrediction* p) {
   const bool floored = p->lo95 < 0 || p->hi95 < 0;
   p->lo95 = std::max(0.0, p->lo95);
   p->hi95 = std::max(0.0, p->hi95);
+  return floored;
+}
+
+bool FloorAtZero(TargetForce* f) {
+  const bool floored = f->ft_lo95_n < 0 || f->ft_hi95_n < 0;
+  f->ft_lo95_n = std::max(0.0, f->ft_lo95_n);
+  f->ft_hi95_n = std::max(0.0, f->ft_hi95_n);
   return floored;
 }
 

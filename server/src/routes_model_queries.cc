@@ -44,26 +44,23 @@ HttpResponse HandleTargetForce(FrictionLibrary& lib, const HttpRequest& req) {
   auto model = ModelFor(lib, req);
   const StochasticFrictionModel& m = Stochastic(*model);
   const InputValues cov = ModelInputParams(req, m);
-  const TargetForce f = CalcTargetTangentialForce(m, fn, v, cov);
+  TargetForce f = CalcTargetTangentialForce(m, fn, v, cov);
   InputValues inputs{{"fn_n", fn}, {"v_mm_s", v}};
   inputs.insert(inputs.end(), cov.begin(), cov.end());
-  RequireServable(CheckServableMu(m, inputs, PredictMu(m, inputs)), inputs);
-  // Ft = mu Fn >= 0: the bounds floored as mu's are (mu_admissibility.h).
-  const bool floored = f.ft_lo95_n < 0 || f.ft_hi95_n < 0;
-  return HttpResponse::Json(
-      200,
-      {{"material", model->set.material},
-       {"version", model->set.version},
-       {"fn_n", fn},
-       {"v_mm_s", v},
-       {"ft_n", f.ft_n},
-       {"mu", f.mu},
-       {"interval95_n",
-        {std::max(0.0, f.ft_lo95_n), std::max(0.0, f.ft_hi95_n)}},
-       {"floored_at_zero", floored},
-       {"extrapolated", f.extrapolated},
-       {"extrapolated_inputs", f.extrapolated_inputs},
-       {"equation", "paper 000 eq. (3)"}});
+  RequireServable(CheckServableMu(m, inputs, f), inputs);
+  const bool floored = FloorAtZero(&f);
+  return HttpResponse::Json(200,
+                            {{"material", model->set.material},
+                             {"version", model->set.version},
+                             {"fn_n", fn},
+                             {"v_mm_s", v},
+                             {"ft_n", f.ft_n},
+                             {"mu", f.mu},
+                             {"interval95_n", {f.ft_lo95_n, f.ft_hi95_n}},
+                             {"floored_at_zero", floored},
+                             {"extrapolated", f.extrapolated},
+                             {"extrapolated_inputs", f.extrapolated_inputs},
+                             {"equation", "paper 000 eq. (3)"}});
 }
 
 HttpResponse HandleSlidingSpeed(FrictionLibrary& lib, const HttpRequest& req) {

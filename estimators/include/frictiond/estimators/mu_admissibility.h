@@ -36,6 +36,7 @@
 #include <string>
 
 #include "frictiond/estimators/contact_friction.h"
+#include "frictiond/estimators/control.h"
 #include "frictiond/estimators/stochastic_model.h"
 
 namespace frictiond {
@@ -59,10 +60,19 @@ MeanMuCheck CheckServableMu(const StochasticFrictionModel& model,
 MeanMuCheck CheckServableMu(const StochasticFrictionModel& model,
                             const InputValues& inputs,
                             const MuDistribution& d);
+/// The same for eq. (3)'s answer (CalcTargetTangentialForce: mu, Ft and
+/// its interval); `inputs` are the ones it was given (fn_n, v_mm_s and the
+/// covariates).
+MeanMuCheck CheckServableMu(const StochasticFrictionModel& model,
+                            const InputValues& inputs,
+                            const TargetForce& f);
 
 /// Floors the interval of `p` at 0; true when a bound was below 0.
 bool FloorAtZero(MuPrediction* p);
 /// Floors the quantiles of `d` at 0; true when one was below 0.
 bool FloorAtZero(MuDistribution* d);
+/// Floors the interval of `f` (Ft = mu Fn) at 0; true when a bound was
+/// below 0.
+bool FloorAtZero(TargetForce* f);
 
 }  // namespace frictiond
