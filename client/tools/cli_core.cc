@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "frictiond/client/client.h"
+#include "frictiond/estimators/grip_force.h"
 #include "frictiond/estimators/mu_admissibility.h"
 #include "frictiond/estimators/stochastic_model.h"
 #include "frictiond/proto/model_json.h"
@@ -241,24 +242,51 @@ void RegisterCoreCommands(CLI::App& app, Globals& g) {
         "slip", "likelihood of slip at (Fn, Ft), evaluated locally");
     static std::string id;
     static double fn = 0, ft = 0;
+    static GripForceOptions state;
     cmd->add_option("ID", id, "material id")->required();
     cmd->add_option("--fn-n", fn, "normal force [N]")->required();
     cmd->add_option("--ft-n", ft, "tangential force [N]")->required();
-    cmd->callback([&g] {
+    auto* v_opt = cmd->add_option(
+        "--v-mm-s",
+        state.v_mm_s,
+        "sliding speed of the grasp [mm/s]: with it (or --hold-s) the "
+        "answer is P(any slip during the hold) by eq. (1), the forward "
+        "model of 'grip' (default 0 then)");
+    auto* hold_opt = cmd->add_option(
+        "--hold-s", state.hold_s, "hold duration [s], as 'grip' takes it");
+    cmd->callback([&g, v_opt, hold_opt] {
       RunCommand([&] {
         RequirePositive("--fn-n", fn);
         RequireNonNegative("--ft-n", ft);
+        const bool at_state = v_opt->count() > 0 || hold_opt->count() > 0;
+        std::string why;
+        if (at_state && !state.IsValid(&why)) throw ClientError(400, why);
         FrictionClient c = MakeClient(g);
         const ModelSet m = c.FetchModel(id);
         if (!m.stochastic)
           throw ClientError(200, "model has no stochastic family");
-        std::cout << json{{"material", id},
-                          {"version", m.version},
-                          {"likelihood",
-                           CalcSlipLikelihood(*m.stochastic, fn, ft)},
-                          {"ratio", ft / fn}}
-                         .dump(2)
-                  << "\n";
+        json out{{"material", id}, {"version", m.version}, {"ratio", ft / fn}};
+        if (at_state) {
+          // The daemon's slip-likelihood at a grasp state: the mean mu must
+          // be servable there (mu_admissibility.h), then grip's forward
+          // model.
+          const InputValues inputs{{"fn_n", fn}, {"v_mm_s", state.v_mm_s}};
+          const MeanMuCheck check = CheckServableMu(
+              *m.stochastic, inputs, PredictMu(*m.stochastic, inputs));
+          if (!check.admissible) throw ClientError(422, check.why);
+          try {
+            out["likelihood"] =
+                CalcHoldSlipProbability(*m.stochastic, fn, ft, state);
+          } catch (const std::invalid_argument& e) {
+            throw ClientError(422, e.what());
+          }
+          out["method"] = "eq1_hold";
+          out["v_mm_s"] = state.v_mm_s;
+          out["hold_s"] = state.hold_s;
+        } else {
+          out["likelihood"] = CalcSlipLikelihood(*m.stochastic, fn, ft);
+        }
+        std::cout << out.dump(2) << "\n";
       });
     });
   }

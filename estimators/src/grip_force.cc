@@ -238,7 +238,12 @@ double CalcHoldSlipProbability(const StochasticFrictionModel& model,
                                double fn_n,
                                double load_n,
                                const GripForceOptions& options) {
-  CheckInputs(load_n, 0.5, options);
+  if (load_n == 0) {  // nothing to hold: checked as any other input
+    std::string why;
+    if (!options.IsValid(&why)) throw std::invalid_argument(why);
+  } else {
+    CheckInputs(load_n, 0.5, options);
+  }
   if (!(fn_n > 0) || !std::isfinite(fn_n))
     throw std::invalid_argument("fn_n = " + std::to_string(fn_n) +
                                 " (must be finite and > 0)");
@@ -247,6 +252,7 @@ double CalcHoldSlipProbability(const StochasticFrictionModel& model,
     throw std::invalid_argument(
         "hold_s = " + std::to_string(options.hold_s) +
         ": the model has no identified eps time correlation (" + t.why + ")");
+  if (load_n == 0) return 0.0;
   Eigen::VectorXd x, dx;
   Regressors(model, fn_n, options.v_mm_s, &x, &dx);
   const double mean =

@@ -62,6 +62,16 @@ const RouteQueries& QueryTable() {
       {{"GET", "/v1/materials/{id}/slip-likelihood"},
        {{"fn_n", "number", true, "normal force [N], > 0"},
         {"ft_n", "number", true, "tangential force [N], >= 0"},
+        {"v_mm_s",
+         "number",
+         false,
+         "sliding speed of the grasp [mm/s]; given (or hold_s given): "
+         "P(any slip during the hold) by eq. (1), grip-force's forward "
+         "model (default 0 then)"},
+        {"hold_s",
+         "number",
+         false,
+         "hold duration [s], as grip-force's (default 0: one instant)"},
         fingertip,
         version,
         robot}},

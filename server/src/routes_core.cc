@@ -105,6 +105,29 @@ const StochasticFrictionModel& Stochastic(const CachedModel& m) {
   return *m.set.stochastic;
 }
 
+namespace {
+
+// grip-force's and slip-likelihood's grasp state: hold_s in [0, 3600] s
+// (default 0: one instant), v_mm_s finite and >= 0 (default 0: at rest).
+GripForceOptions GraspStateParams(const HttpRequest& req) {
+  GripForceOptions options;
+  if (req.Query("hold_s")) options.hold_s = req.RequireNumber("hold_s");
+  if (req.Query("v_mm_s")) options.v_mm_s = req.RequireNumber("v_mm_s");
+  if (!(options.hold_s >= 0 && options.hold_s <= 3600))
+    throw RequestError(StatusCode::kInvalidArgument,
+                       "hold_s",
+                       "hold_s = " + std::to_string(options.hold_s) +
+                           " (must be in [0, 3600] s)");
+  if (!(options.v_mm_s >= 0) || !std::isfinite(options.v_mm_s))
+    throw RequestError(StatusCode::kInvalidArgument,
+                       "v_mm_s",
+                       "v_mm_s = " + std::to_string(options.v_mm_s) +
+                           " (must be finite and >= 0)");
+  return options;
+}
+
+}  // namespace
+
 void RequireServable(const MeanMuCheck& check,
                      const InputValues& inputs,
                      const std::string& what) {
@@ -388,43 +411,70 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
              {"extrapolated_inputs", p.extrapolated_inputs},
              {"mu_coulomb", m.mu_coulomb}});
       });
-  http.Route("GET",
-             "/v1/materials/{id}/slip-likelihood",
-             [&lib](const HttpRequest& req) {
-               const double fn = req.RequireNumber("fn_n");
-               const double ft = req.RequireNumber("ft_n");
-               if (!(fn > 0))
-                 throw RequestError(
-                     StatusCode::kInvalidArgument,
-                     "fn_n",
-                     "fn_n = " + std::to_string(fn) + " (must be > 0)");
-               if (!(ft >= 0))
-                 throw RequestError(
-                     StatusCode::kInvalidArgument,
-                     "ft_n",
-                     "ft_n = " + std::to_string(ft) + " (must be >= 0)");
-               auto model = ModelFor(lib, req);
-               const StochasticFrictionModel& m = Stochastic(*model);
-               const double L = CalcSlipLikelihood(m, fn, ft);
-               const double r = ft / fn;
-               if (!std::isfinite(r))
-                 throw RequestError(StatusCode::kFailedPrecondition,
-                                    "ft_n",
-                                    "ft_n / fn_n = " + NumberText(ft) + " / " +
-                                        NumberText(fn) + " is not finite");
-               // Fn outside the fitted range: flagged as predict flags it.
-               const MuPrediction at = PredictMu(m, InputValues{{"fn_n", fn}});
-               return HttpResponse::Json(
-                   200,
-                   {{"material", model->set.material},
-                    {"version", model->set.version},
-                    {"likelihood", L},
-                    {"ratio", r},
-                    {"method", m.likelihood.valid ? "sigmoid" : "eps_cdf"},
-                    {"coulomb_slips", r >= m.mu_coulomb},
-                    {"extrapolated", at.extrapolated},
-                    {"extrapolated_inputs", at.extrapolated_inputs}});
-             });
+  http.Route(
+      "GET",
+      "/v1/materials/{id}/slip-likelihood",
+      [&lib](const HttpRequest& req) {
+        const double fn = req.RequireNumber("fn_n");
+        const double ft = req.RequireNumber("ft_n");
+        if (!(fn > 0))
+          throw RequestError(StatusCode::kInvalidArgument,
+                             "fn_n",
+                             "fn_n = " + std::to_string(fn) + " (must be > 0)");
+        if (!(ft >= 0))
+          throw RequestError(
+              StatusCode::kInvalidArgument,
+              "ft_n",
+              "ft_n = " + std::to_string(ft) + " (must be >= 0)");
+        // Given the grasp's state (v_mm_s and/or hold_s, as
+        // grip-force takes them), the answer is grip-force's forward
+        // model, eq. (1) with eps over the hold; without, the paper's
+        // speed-free likelihood (section III-A / III-C).
+        const bool at_state = req.Query("v_mm_s") || req.Query("hold_s");
+        const GripForceOptions state = GraspStateParams(req);
+        auto model = ModelFor(lib, req);
+        const StochasticFrictionModel& m = Stochastic(*model);
+        const double r = ft / fn;
+        if (!std::isfinite(r))
+          throw RequestError(StatusCode::kFailedPrecondition,
+                             "ft_n",
+                             "ft_n / fn_n = " + NumberText(ft) + " / " +
+                                 NumberText(fn) + " is not finite");
+        InputValues inputs{{"fn_n", fn}};
+        if (at_state) inputs.emplace_back("v_mm_s", state.v_mm_s);
+        // Outside the fitted range: flagged as predict flags it.
+        const MuPrediction at = PredictMu(m, inputs);
+        double L = 0.0;
+        if (at_state) {
+          // The mean mu there must be servable (mu_admissibility.h),
+          // as for predict and grip-force at the same state.
+          RequireServable(CheckServableMu(m, inputs, at), inputs);
+          try {
+            L = CalcHoldSlipProbability(m, fn, ft, state);
+          } catch (const std::invalid_argument& e) {
+            // The one input left that the model can refuse.
+            throw RequestError(
+                StatusCode::kFailedPrecondition, "hold_s", e.what());
+          }
+        } else {
+          L = CalcSlipLikelihood(m, fn, ft);
+        }
+        json out{{"material", model->set.material},
+                 {"version", model->set.version},
+                 {"likelihood", L},
+                 {"ratio", r},
+                 {"method",
+                  at_state ? "eq1_hold"
+                           : (m.likelihood.valid ? "sigmoid" : "eps_cdf")},
+                 {"coulomb_slips", r >= m.mu_coulomb},
+                 {"extrapolated", at.extrapolated},
+                 {"extrapolated_inputs", at.extrapolated_inputs}};
+        if (at_state) {
+          out["v_mm_s"] = state.v_mm_s;
+          out["hold_s"] = state.hold_s;
+        }
+        return HttpResponse::Json(200, out);
+      });
   http.Route(
       "GET", "/v1/materials/{id}/grip-force", [&lib](const HttpRequest& req) {
         const double load = req.RequireNumber("load_n");
@@ -441,19 +491,7 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
               "risk = " + std::to_string(risk) + " (must be in (0, 1))");
         // hold_s (default 0 = one instant) and v_mm_s (default 0 = at
         // rest): CONTRACT.md; grip_force.h for the risk's meaning.
-        GripForceOptions options;
-        if (req.Query("hold_s")) options.hold_s = req.RequireNumber("hold_s");
-        if (req.Query("v_mm_s")) options.v_mm_s = req.RequireNumber("v_mm_s");
-        if (!(options.hold_s >= 0 && options.hold_s <= 3600))
-          throw RequestError(StatusCode::kInvalidArgument,
-                             "hold_s",
-                             "hold_s = " + std::to_string(options.hold_s) +
-                                 " (must be in [0, 3600] s)");
-        if (!(options.v_mm_s >= 0) || !std::isfinite(options.v_mm_s))
-          throw RequestError(StatusCode::kInvalidArgument,
-                             "v_mm_s",
-                             "v_mm_s = " + std::to_string(options.v_mm_s) +
-                                 " (must be finite and >= 0)");
+        const GripForceOptions options = GraspStateParams(req);
         auto model = ModelFor(lib, req);
         const GripForce g =
             CalcGripForce(Stochastic(*model), load, risk, options);

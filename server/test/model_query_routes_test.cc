@@ -321,6 +321,59 @@ TEST_F(ModelQueryRoutesTest, SlipLikelihoodFlagsExtrapolation) {
   ExpectUnservable(path, {{"fn_n", "1e-300"}, {"ft_n", "1e300"}}, "ft_n");
 }
 
+// slip-likelihood given the grasp's state (v_mm_s, hold_s) is grip-force's
+// forward model: at the grip force for (load, risk) it answers the risk, so
+// a client can check a served grip force with the library itself.
+TEST_F(ModelQueryRoutesTest, SlipLikelihoodAtTheGraspStateInvertsGripForce) {
+  Upload("felt", {});  // b0 0.9, b1 0.004, b2 -0.06; Fn 0.5-4.5 N
+  const std::string grip = "/v1/materials/felt/grip-force";
+  const std::string slip = "/v1/materials/felt/slip-likelihood";
+  int checked = 0;
+  for (const char* v : {"0", "20", "60"}) {
+    for (const char* hold : {"0", "1.5"}) {
+      for (const double risk : {0.01, 0.05, 0.3}) {
+        const std::string load = "1.2";
+        const HttpResponse g = Get(grip,
+                                   {{"load_n", load},
+                                    {"risk", std::to_string(risk)},
+                                    {"v_mm_s", v},
+                                    {"hold_s", hold}});
+        if (g.status != 200) {  // a risk below what the data support
+          EXPECT_EQ(g.status, 422) << g.body;
+          continue;
+        }
+        const double fn = json::parse(g.body)["fn_n"].get<double>();
+        auto at = [&](double f) {
+          const json j = GetOk(slip,
+                               {{"fn_n", json(f).dump()},
+                                {"ft_n", load},
+                                {"v_mm_s", v},
+                                {"hold_s", hold}});
+          EXPECT_EQ(j["method"], "eq1_hold") << j.dump();
+          return j["likelihood"].get<double>();
+        };
+        EXPECT_NEAR(at(fn), risk, 1e-4 * risk)
+            << "v " << v << " hold " << hold << " risk " << risk;
+        // More grip, less slip; less grip, more.
+        EXPECT_LT(at(1.1 * fn), risk);
+        EXPECT_GT(at(0.9 * fn), risk);
+        ++checked;
+      }
+    }
+  }
+  EXPECT_GE(checked, 12);
+  // No load, no slip; the speed-free likelihood is unchanged without a
+  // state; the state's inputs are checked as grip-force checks them.
+  EXPECT_EQ(
+      GetOk(slip,
+            {{"fn_n", "2"}, {"ft_n", "0"}, {"v_mm_s", "20"}})["likelihood"]
+          .get<double>(),
+      0.0);
+  EXPECT_NE(GetOk(slip, {{"fn_n", "2"}, {"ft_n", "1"}})["method"], "eq1_hold");
+  ExpectBad(slip, {{"fn_n", "2"}, {"ft_n", "1"}, {"v_mm_s", "-1"}}, "v_mm_s");
+  ExpectBad(slip, {{"fn_n", "2"}, {"ft_n", "1"}, {"hold_s", "1e9"}}, "hold_s");
+}
+
 TEST_F(ModelQueryRoutesTest, IdentificationsOpenFlagIsValidated) {
   ExpectBad("/v1/identifications", {{"open", "banana"}}, "open");
   for (const char* v : {"0", "1", "true", "false"})

@@ -105,8 +105,14 @@ double CalcMinSupportedRisk(const StochasticFrictionModel& model,
                             double hold_s);
 
 /// P(slip at any time during the hold) when holding load_n at fn_n: the
-/// forward model of CalcGripForce (for checks and for simulators).
-/// @throws std::invalid_argument as CalcGripForce, or kNoTimeModel's case.
+/// forward model of CalcGripForce, so that
+///   CalcHoldSlipProbability(m, CalcGripForce(m, L, r, o).fn_n, L, o) = r
+/// (for checks, for simulators, and the slip-likelihood route when it is
+/// given the grasp's state: v_mm_s or hold_s). load_n = 0 answers 0: a
+/// grasp that holds no load has nothing to slip from.
+/// @throws std::invalid_argument for load_n < 0 or not finite, fn_n <= 0
+/// or not finite, invalid options, or hold_s > 0 on a model without an eps
+/// time model (the message names hold_s).
 double CalcHoldSlipProbability(const StochasticFrictionModel& model,
                                double fn_n,
                                double load_n,
