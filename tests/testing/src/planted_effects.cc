@@ -223,7 +223,10 @@ bool IsNull(WideKind kind) {
          kind == WideKind::kNullArNoise || kind == WideKind::kNullManyColumns;
 }
 
-WideCase GenerateWideCase(WideKind kind, std::uint64_t seed, int strokes) {
+WideCase GenerateWideCase(WideKind kind,
+                          std::uint64_t seed,
+                          int strokes,
+                          double categorical_sd) {
   // kCategoricalBounded draws what kCategorical draws (same stream).
   const WideKind stream =
       kind == WideKind::kCategoricalBounded ? WideKind::kCategorical : kind;
@@ -325,9 +328,17 @@ WideCase GenerateWideCase(WideKind kind, std::uint64_t seed, int strokes) {
         for (int l : level) m += shift[l];
         m /= strokes;
         for (int l : level) ss += (shift[l] - m) * (shift[l] - m);
-        const double target = 0.04 + 0.02 * unif(rng);
+        const double drawn = 0.04 + 0.02 * unif(rng);
+        const double target = categorical_sd > 0 ? categorical_sd : drawn;
         const double scale = target / std::max(1e-12, std::sqrt(ss / strokes));
         for (double& s : shift) s = (s - m) * scale;
+      }
+      {
+        double m = 0.0, ss = 0.0;
+        for (int l : level) m += shift[l];
+        m /= strokes;
+        for (int l : level) ss += (shift[l] - m) * (shift[l] - m);
+        out.effect_sd = std::sqrt(ss / strokes);
       }
       for (std::size_t i = 0; i < n; ++i) {
         const int l = level[d.stroke[i]];

@@ -115,9 +115,21 @@ struct WideCase {
   std::string kind;   ///< expected finding kind ("covariate", "interaction",
                       ///< "spread"; "" for nulls)
   std::string truth;  ///< what was planted, for failure messages
+  /// The categorical kinds: the realised size of the planted level shifts,
+  /// their standard deviation over the strokes (each stroke weighted once),
+  /// the statistic kCategoricalBounded draws from 0.04-0.06 and the other
+  /// kinds' sizes compare with (smooth curve 0.05; interaction about
+  /// 0.035-0.06). 0 for the other kinds.
+  double effect_sd = 0.0;
 };
 
 /// Generates a case of `kind` with `strokes` strokes; deterministic per seed.
-WideCase GenerateWideCase(WideKind kind, std::uint64_t seed, int strokes = 100);
+/// `categorical_sd` > 0 sets kCategoricalBounded's size to exactly that
+/// standard deviation instead of a draw from 0.04-0.06 (a power curve;
+/// every other draw unchanged); ignored by the other kinds.
+WideCase GenerateWideCase(WideKind kind,
+                          std::uint64_t seed,
+                          int strokes = 100,
+                          double categorical_sd = 0.0);
 
 }  // namespace frictiond::testing
