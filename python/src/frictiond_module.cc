@@ -446,6 +446,40 @@ py::object GripForces(const Model& model,
       .attr("GripForce")(fn, mu, ok, extra, sd, instant, min_risk, status);
 }
 
+py::array_t<double> HoldSlipProbabilities(const Model& model,
+                                          py::handle fn_n,
+                                          py::handle load_n,
+                                          py::handle hold_s,
+                                          py::handle v_mm_s) {
+  const StochasticFrictionModel& m = model.stochastic();
+  const Broadcast bc = MakeBroadcast({{"fn_n", AsArray(fn_n, "fn_n")},
+                                      {"load_n", AsArray(load_n, "load_n")},
+                                      {"hold_s", AsArray(hold_s, "hold_s")},
+                                      {"v_mm_s", AsArray(v_mm_s, "v_mm_s")}});
+  auto out = NewArray<double>(bc.shape);
+  double* po = out.mutable_data();
+  std::string error;
+  {
+    py::gil_scoped_release nogil;
+    try {
+      ForEach<4>(bc, [&](py::ssize_t i, const double* x) {
+        try {
+          GripForceOptions o;
+          o.hold_s = x[2];
+          o.v_mm_s = x[3];
+          po[i] = CalcHoldSlipProbability(m, x[0], x[1], o);
+        } catch (const std::invalid_argument& e) {
+          throw std::invalid_argument(IndexText(bc, i) + e.what());
+        }
+      });
+    } catch (const std::invalid_argument& e) {
+      error = e.what();
+    }
+  }
+  if (!error.empty()) throw py::value_error(error);
+  return out;
+}
+
 std::vector<py::ssize_t> SizeShape(const py::object& size) {
   std::vector<py::ssize_t> shape;
   if (size.is_none()) return shape;
@@ -730,6 +764,29 @@ Returns:
     Array of probabilities in [0, 1] of the broadcast shape.
 )";
 
+constexpr const char* kHoldSlipDoc =
+    R"(P(any slip during the hold) of a grasp at fn_n holding load_n.
+
+The forward model of grip_force (C++ CalcHoldSlipProbability, element by
+element): at fn_n = grip_force(load_n, risk, hold_s, v_mm_s).fn_n it
+answers risk. Eq. (1) at v_mm_s with eps's identified time correlation;
+the daemon's slip-likelihood route answers it when given v_mm_s or hold_s
+(docs/grip_force.md). load_n = 0 answers 0.
+
+Args:
+    fn_n: normal force [N], finite and > 0.
+    load_n: tangential load held [N], finite and >= 0.
+    hold_s: duration of the hold [s], in [0, 3600]; > 0 needs the model's
+        eps time model.
+    v_mm_s: sliding speed of the grasp [mm/s], >= 0 (default 0: at rest).
+
+Returns:
+    Array of probabilities in [0, 1] of the broadcast shape.
+
+Raises:
+    ValueError: naming the element's index and the input.
+)";
+
 constexpr const char* kGripDoc =
     R"(Smallest normal force holding load_n with slip risk at most `risk`.
 
@@ -906,6 +963,13 @@ PYBIND11_MODULE(_core, m) {
            py::arg("fn_n"),
            py::arg("ft_n"),
            kSlipDoc)
+      .def("hold_slip_probability",
+           &HoldSlipProbabilities,
+           py::arg("fn_n"),
+           py::arg("load_n"),
+           py::arg("hold_s") = 0.0,
+           py::arg("v_mm_s") = 0.0,
+           kHoldSlipDoc)
       .def("grip_force",
            &GripForces,
            py::arg("load_n"),

@@ -262,6 +262,23 @@ def test_grip_force_for_a_hold_equals_scalar(model):
     assert np.all(g.fn_n[..., 2][ok] >= g.fn_n[..., 1][ok])
 
 
+def test_hold_slip_probability_inverts_grip_force(model):
+    load = np.array([1.0, 2.0])[:, None, None]
+    risk = np.array([0.01, 0.05, 0.2])[None, :, None]
+    hold = np.array([0.0, 0.5, 3.0])
+    g = model.grip_force(load, risk, hold_s=hold, v_mm_s=10.0)
+    lb, rb, hb = np.broadcast_arrays(load, risk, hold)
+    ok = g.attainable
+    assert ok.sum() >= 9
+    p = model.hold_slip_probability(g.fn_n[ok], lb[ok], hold_s=hb[ok], v_mm_s=10.0)
+    np.testing.assert_allclose(p, rb[ok], rtol=1e-4)
+    assert np.all(model.hold_slip_probability(1.1 * g.fn_n[ok], lb[ok],
+                                              hold_s=hb[ok], v_mm_s=10.0) < rb[ok])
+    assert model.hold_slip_probability(2.0, 0.0, v_mm_s=10.0) == 0.0
+    with pytest.raises(ValueError, match=r"at index \(1,\): fn_n"):
+        model.hold_slip_probability([2.0, -1.0], 1.0)
+
+
 def test_grip_force_rejects_bad_elements(model):
     with pytest.raises(ValueError, match=r"at index \(2,\): load_n = -1"):
         model.grip_force([1.0, 2.0, -1.0], 0.01)
