@@ -5,6 +5,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include "frictiond/estimators/number_text.h"
+
 namespace frictiond {
 
 namespace {
@@ -150,6 +152,13 @@ ConditionalSlipLikelihood FitConditionalSlipLikelihood(
       out.step_n = step;
       out.window_n = 2.0 * half;
     }
+    // A hostile or broken sample (e.g. fn_n = 1e308) makes the range too
+    // wide for any finite grid: say so, not "from -nan to -nan".
+    if (!std::isfinite(step) || !std::isfinite(first) || !std::isfinite(last))
+      throw std::invalid_argument("the data's Fn range " + NumberText(fn_lo) +
+                                  " to " + NumberText(fn_hi) +
+                                  " N is too wide for Fn windows (their step "
+                                  "overflows)");
   }
   const double span = (last - first) / step;
   if (!(span < options.max_windows)) {

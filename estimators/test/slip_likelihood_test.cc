@@ -197,6 +197,18 @@ TEST(ConditionalSlipLikelihood, WideFnRangeCoarsensTheWindows) {
   o.fn_max_n = 250.0;
   EXPECT_THROW(FitConditionalSlipLikelihood(d.fn, d.ratio, d.slip, o),
                std::invalid_argument);
+  // One sample at the top of double's range (a hostile upload): refused
+  // with the range named, never "from -nan to -nan".
+  Labelled one = Simulate(2000, 32);
+  one.fn[7] = 1e308;
+  try {
+    FitConditionalSlipLikelihood(one.fn, one.ratio, one.slip);
+    ADD_FAILURE() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.find("nan"), std::string::npos) << what;
+    EXPECT_NE(what.find("1e+308"), std::string::npos) << what;
+  }
 }
 
 // Window membership is exactly lo <= Fn < hi, also for Fn on the window
