@@ -244,6 +244,29 @@ std::string IndexText(const Broadcast& bc, py::ssize_t flat) {
   return s + (idx.size() == 1 ? ",): " : "): ");
 }
 
+// ForEach without the GIL for calls that reject an element with
+// std::invalid_argument: the first rejection becomes a ValueError naming
+// the element's index (IndexText) and the estimator's reason.
+template <std::size_t N, class F>
+void ForEachChecked(const Broadcast& bc, F&& f) {
+  std::string error;
+  {
+    py::gil_scoped_release nogil;
+    try {
+      ForEach<N>(bc, [&](py::ssize_t i, const double* x) {
+        try {
+          f(i, x);
+        } catch (const std::invalid_argument& e) {
+          throw std::invalid_argument(IndexText(bc, i) + e.what());
+        }
+      });
+    } catch (const std::invalid_argument& e) {
+      error = e.what();
+    }
+  }
+  if (!error.empty()) throw py::value_error(error);
+}
+
 // ---------------------------------------------------------------------------
 // NumPy random generators: draw uniforms through the BitGenerator's C
 // interface (numpy/random/bitgen.h), under its lock, so the C++ draws are
@@ -414,34 +437,21 @@ py::object GripForces(const Model& model,
   bool* pok = ok.mutable_data();
   bool* pe = extra.mutable_data();
   std::int8_t* ps = status.mutable_data();
-  std::string error;
-  {
-    py::gil_scoped_release nogil;
-    try {
-      ForEach<4>(bc, [&](py::ssize_t i, const double* x) {
-        try {
-          GripForceOptions o;
-          o.hold_s = x[2];
-          o.v_mm_s = x[3];
-          const GripForce g = CalcGripForce(m, x[0], x[1], o);
-          const double nan = std::nan("");
-          pf[i] = g.attainable ? g.fn_n : nan;
-          pm[i] = g.attainable ? g.mu_used : nan;
-          psd[i] = g.attainable ? g.fn_n_sd : nan;
-          pi[i] = g.attainable ? g.instant_risk : nan;
-          pr[i] = g.min_supported_risk;
-          pok[i] = g.attainable;
-          pe[i] = g.extrapolated;
-          ps[i] = static_cast<std::int8_t>(g.status);
-        } catch (const std::invalid_argument& e) {
-          throw std::invalid_argument(IndexText(bc, i) + e.what());
-        }
-      });
-    } catch (const std::invalid_argument& e) {
-      error = e.what();
-    }
-  }
-  if (!error.empty()) throw py::value_error(error);
+  ForEachChecked<4>(bc, [&](py::ssize_t i, const double* x) {
+    GripForceOptions o;
+    o.hold_s = x[2];
+    o.v_mm_s = x[3];
+    const GripForce g = CalcGripForce(m, x[0], x[1], o);
+    const double nan = std::nan("");
+    pf[i] = g.attainable ? g.fn_n : nan;
+    pm[i] = g.attainable ? g.mu_used : nan;
+    psd[i] = g.attainable ? g.fn_n_sd : nan;
+    pi[i] = g.attainable ? g.instant_risk : nan;
+    pr[i] = g.min_supported_risk;
+    pok[i] = g.attainable;
+    pe[i] = g.extrapolated;
+    ps[i] = static_cast<std::int8_t>(g.status);
+  });
   return py::module_::import("frictiond._types")
       .attr("GripForce")(fn, mu, ok, extra, sd, instant, min_risk, status);
 }
@@ -458,25 +468,12 @@ py::array_t<double> HoldSlipProbabilities(const Model& model,
                                       {"v_mm_s", AsArray(v_mm_s, "v_mm_s")}});
   auto out = NewArray<double>(bc.shape);
   double* po = out.mutable_data();
-  std::string error;
-  {
-    py::gil_scoped_release nogil;
-    try {
-      ForEach<4>(bc, [&](py::ssize_t i, const double* x) {
-        try {
-          GripForceOptions o;
-          o.hold_s = x[2];
-          o.v_mm_s = x[3];
-          po[i] = CalcHoldSlipProbability(m, x[0], x[1], o);
-        } catch (const std::invalid_argument& e) {
-          throw std::invalid_argument(IndexText(bc, i) + e.what());
-        }
-      });
-    } catch (const std::invalid_argument& e) {
-      error = e.what();
-    }
-  }
-  if (!error.empty()) throw py::value_error(error);
+  ForEachChecked<4>(bc, [&](py::ssize_t i, const double* x) {
+    GripForceOptions o;
+    o.hold_s = x[2];
+    o.v_mm_s = x[3];
+    po[i] = CalcHoldSlipProbability(m, x[0], x[1], o);
+  });
   return out;
 }
 
