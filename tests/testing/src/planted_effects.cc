@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <utility>
 
 namespace frictiond::testing {
 
@@ -320,26 +321,26 @@ WideCase GenerateWideCase(WideKind kind,
       }
       std::vector<int> level(strokes);
       for (int& l : level) l = static_cast<int>(unif(rng) * levels) % levels;
+      // Mean and standard deviation of the shifts over the strokes (each
+      // stroke weighted once).
+      auto stroke_mean_sd = [&] {
+        double m = 0.0, ss = 0.0;
+        for (int l : level) m += shift[l];
+        m /= strokes;
+        for (int l : level) ss += (shift[l] - m) * (shift[l] - m);
+        return std::pair<double, double>(m, std::sqrt(ss / strokes));
+      };
       if (kind == WideKind::kCategoricalBounded) {
         // The same pattern of shifts, centred and scaled to a standard
         // deviation over the strokes drawn from 0.04-0.06 (drawn last, so
         // everything above matches kCategorical's draws).
-        double m = 0.0, ss = 0.0;
-        for (int l : level) m += shift[l];
-        m /= strokes;
-        for (int l : level) ss += (shift[l] - m) * (shift[l] - m);
+        const auto [m, sd] = stroke_mean_sd();
         const double drawn = 0.04 + 0.02 * unif(rng);
         const double target = categorical_sd > 0 ? categorical_sd : drawn;
-        const double scale = target / std::max(1e-12, std::sqrt(ss / strokes));
+        const double scale = target / std::max(1e-12, sd);
         for (double& s : shift) s = (s - m) * scale;
       }
-      {
-        double m = 0.0, ss = 0.0;
-        for (int l : level) m += shift[l];
-        m /= strokes;
-        for (int l : level) ss += (shift[l] - m) * (shift[l] - m);
-        out.effect_sd = std::sqrt(ss / strokes);
-      }
+      out.effect_sd = stroke_mean_sd().second;
       for (std::size_t i = 0; i < n; ++i) {
         const int l = level[d.stroke[i]];
         z[i] = code[l];
