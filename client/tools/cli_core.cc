@@ -267,19 +267,16 @@ void RegisterCoreCommands(CLI::App& app, Globals& g) {
           throw ClientError(200, "model has no stochastic family");
         json out{{"material", id}, {"version", m.version}, {"ratio", ft / fn}};
         if (at_state) {
-          // The daemon's slip-likelihood at a grasp state: the mean mu must
-          // be servable there (mu_admissibility.h), then grip's forward
-          // model.
-          const InputValues inputs{{"fn_n", fn}, {"v_mm_s", state.v_mm_s}};
-          const MeanMuCheck check = CheckServableMu(
-              *m.stochastic, inputs, PredictMu(*m.stochastic, inputs));
-          if (!check.admissible) throw ClientError(422, check.why);
+          // The daemon's slip-likelihood at a grasp state: one rule
+          // (grip_force.h, CalcServedHoldSlip).
+          ServedHoldSlip s;
           try {
-            out["likelihood"] =
-                CalcHoldSlipProbability(*m.stochastic, fn, ft, state);
+            s = CalcServedHoldSlip(*m.stochastic, fn, ft, state);
           } catch (const std::invalid_argument& e) {
             throw ClientError(422, e.what());
           }
+          if (!s.check.admissible) throw ClientError(422, s.check.why);
+          out["likelihood"] = s.probability;
           out["method"] = "eq1_hold";
           out["v_mm_s"] = state.v_mm_s;
           out["hold_s"] = state.hold_s;

@@ -105,4 +105,17 @@ bool FloorAtZero(MuDistribution* d) {
   return floored;
 }
 
+ServedHoldSlip CalcServedHoldSlip(const StochasticFrictionModel& model,
+                                  double fn_n,
+                                  double load_n,
+                                  const GripForceOptions& options) {
+  ServedHoldSlip out;
+  const InputValues inputs{{"fn_n", fn_n}, {"v_mm_s", options.v_mm_s}};
+  out.at = PredictMu(model, inputs);
+  out.check = CheckServableMu(model, inputs, out.at);
+  if (out.check.admissible)
+    out.probability = CalcHoldSlipProbability(model, fn_n, load_n, options);
+  return out;
+}
+
 }  // namespace frictiond

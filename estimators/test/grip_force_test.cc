@@ -12,6 +12,7 @@
 
 #include <gtest/gtest.h>
 
+#include "frictiond/estimators/mu_admissibility.h"
 #include "frictiond/estimators/stats.h"
 #include "frictiond/estimators/stochastic_model.h"
 
@@ -218,6 +219,37 @@ TEST(GripForce, ServedRiskForSkewedOffsetOutsideTheFamily) {
   Truth t;
   t.skewed_offset = true;
   CheckServedRisk(t, 24000, 5, "skewed-laplace");
+}
+
+TEST(GripForce, ServedHoldSlipChecksTheMeanBeforeTheProbability) {
+  Truth t;
+  const StochasticFit fit = FitStochasticModel(TrainingStrokes(t, 400, 6));
+  ASSERT_EQ(fit.status, FitStatus::kOk) << fit.why;
+  StochasticFrictionModel m = fit.model;
+  GripForceOptions o;
+  o.v_mm_s = 30.0;
+  o.hold_s = 1.0;
+  // Servable: the probability is the forward model's, at the given state,
+  // and it inverts the grip force.
+  const GripForce g = CalcGripForce(m, 1.0, 0.05, o);
+  ASSERT_EQ(g.status, GripForceStatus::kOk) << g.why;
+  const ServedHoldSlip ok = CalcServedHoldSlip(m, g.fn_n, 1.0, o);
+  EXPECT_TRUE(ok.check.admissible) << ok.check.why;
+  EXPECT_EQ(ok.probability, CalcHoldSlipProbability(m, g.fn_n, 1.0, o));
+  EXPECT_NEAR(ok.probability, 0.05, 1e-4);
+  EXPECT_FALSE(ok.at.extrapolated);
+  // A normal force far outside the fit: flagged; where the mean mu goes
+  // below 0 (b2 < 0 here: mu = 0.9 - 0.05 Fn), refused before the hold's
+  // probability is computed, naming the force.
+  const ServedHoldSlip bad = CalcServedHoldSlip(m, 1000.0, 1.0, o);
+  EXPECT_TRUE(bad.at.extrapolated);
+  EXPECT_FALSE(bad.check.admissible);
+  EXPECT_EQ(bad.check.field, "fn_n");
+  EXPECT_TRUE(std::isnan(bad.probability));
+  // Servable but a hold on a model without a time model: the hold's own
+  // refusal (the transports map it to hold_s).
+  m.eps_time.valid = false;
+  EXPECT_THROW(CalcServedHoldSlip(m, g.fn_n, 1.0, o), std::invalid_argument);
 }
 
 }  // namespace

@@ -440,23 +440,26 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
                              "ft_n",
                              "ft_n / fn_n = " + NumberText(ft) + " / " +
                                  NumberText(fn) + " is not finite");
-        InputValues inputs{{"fn_n", fn}};
-        if (at_state) inputs.emplace_back("v_mm_s", state.v_mm_s);
         // Outside the fitted range: flagged as predict flags it.
-        const MuPrediction at = PredictMu(m, inputs);
+        MuPrediction at;
         double L = 0.0;
         if (at_state) {
-          // The mean mu there must be servable (mu_admissibility.h),
-          // as for predict and grip-force at the same state.
-          RequireServable(CheckServableMu(m, inputs, at), inputs);
+          // The served forward model (grip_force.h, CalcServedHoldSlip):
+          // a servable mean mu at the state, then P(slip in the hold).
+          ServedHoldSlip s;
           try {
-            L = CalcHoldSlipProbability(m, fn, ft, state);
+            s = CalcServedHoldSlip(m, fn, ft, state);
           } catch (const std::invalid_argument& e) {
             // The one input left that the model can refuse.
             throw RequestError(
                 StatusCode::kFailedPrecondition, "hold_s", e.what());
           }
+          RequireServable(s.check,
+                          InputValues{{"fn_n", fn}, {"v_mm_s", state.v_mm_s}});
+          at = std::move(s.at);
+          L = s.probability;
         } else {
+          at = PredictMu(m, InputValues{{"fn_n", fn}});
           L = CalcSlipLikelihood(m, fn, ft);
         }
         json out{{"material", model->set.material},

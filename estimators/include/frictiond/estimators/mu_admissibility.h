@@ -14,7 +14,8 @@
 /// that pushes the motion along.
 ///
 /// The rule, applied before a coefficient is served (predict, target-force,
-/// export, pairs; grip-force already refuses a quantile <= 0):
+/// export, pairs, slip-likelihood at a grasp state: CalcServedHoldSlip;
+/// grip-force already refuses a quantile <= 0):
 /// - a mean mu that is not finite or below 0: the model is not valid at
 ///   these inputs. CheckServableMu says so and names the input that moved
 ///   it there: of the inputs given, the one whose move to its fitted mean
@@ -33,10 +34,12 @@
 ///   const bool floored = FloorAtZero(&p);  // lo95, hi95 >= 0
 /// @endcode
 
+#include <limits>
 #include <string>
 
 #include "frictiond/estimators/contact_friction.h"
 #include "frictiond/estimators/control.h"
+#include "frictiond/estimators/grip_force.h"
 #include "frictiond/estimators/stochastic_model.h"
 
 namespace frictiond {
@@ -74,5 +77,25 @@ bool FloorAtZero(MuDistribution* d);
 /// Floors the interval of `f` (Ft = mu Fn) at 0; true when a bound was
 /// below 0.
 bool FloorAtZero(TargetForce* f);
+
+/// CalcHoldSlipProbability as it is served: the one rule behind the
+/// slip-likelihood route given a grasp state (v_mm_s or hold_s) and
+/// `friction slip --v-mm-s/--hold-s`. The mean mu at (fn_n, v_mm_s) must be
+/// servable first (CheckServableMu, as for predict and grip-force at the
+/// same state); only then is the probability computed.
+struct ServedHoldSlip {
+  /// PredictMu at {fn_n, v_mm_s}: the extrapolation flags of the answer.
+  MuPrediction at;
+  /// CheckServableMu of `at`; when not admissible, `probability` is NaN.
+  MeanMuCheck check;
+  /// CalcHoldSlipProbability(model, fn_n, load_n, options).
+  double probability = std::numeric_limits<double>::quiet_NaN();
+};
+/// @throws std::invalid_argument as CalcHoldSlipProbability does, once the
+/// mean is servable (e.g. hold_s > 0 on a model without a time model).
+ServedHoldSlip CalcServedHoldSlip(const StochasticFrictionModel& model,
+                                  double fn_n,
+                                  double load_n,
+                                  const GripForceOptions& options = {});
 
 }  // namespace frictiond
