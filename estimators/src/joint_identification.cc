@@ -422,4 +422,30 @@ JointData SimulateJointData(const MixedFrictionTheta& theta,
   return d;
 }
 
+MixedFrictionPrediction PredictMixedFriction(const JointFitResult& mixed,
+                                             const AsperitySurface& surface,
+                                             double sommerfeld_um,
+                                             double load_n) {
+  MixedFrictionPrediction p;
+  const MixedFrictionTheta theta = mixed.theta.head<4>();
+  MixedFrictionThetaRow J;
+  p.mu = CalcMixedFriction(theta, surface, sommerfeld_um, load_n, &J);
+  p.sigma_contact =
+      CalcMixedFrictionDispersion(theta, surface, sommerfeld_um, load_n);
+  const Eigen::Matrix4d P = mixed.P_theta.topLeftCorner<4, 4>();
+  p.sigma_param = std::sqrt(std::max(0.0, double(J * P * J.transpose())));
+  p.sigma = std::hypot(p.sigma_contact, p.sigma_param);
+  constexpr double kZ975 = 1.959964;  // standard normal 97.5 % quantile
+  p.lo95 = p.mu - kZ975 * p.sigma;
+  p.hi95 = p.mu + kZ975 * p.sigma;
+  if (p.lo95 < 0) {
+    p.lo95 = 0;
+    p.floored_at_zero = true;
+  }
+  p.film_um =
+      sommerfeld_um > 0 ? CalcFilmThicknessUm(theta, sommerfeld_um) : 0.0;
+  p.alpha = CalcSolidFraction(surface, p.film_um, load_n);
+  return p;
+}
+
 }  // namespace frictiond

@@ -384,6 +384,41 @@ TEST(JointIdentification, RecoversTheMixedModelWithCovariance) {
   }
 }
 
+TEST(JointIdentification, PredictionCombinesScatterAndParametersAndFloors) {
+  const JointConfig config;
+  JointFitResult mixed;
+  mixed.kind = JointModelKind::kMixed;
+  mixed.status = JointFitStatus::kConverged;
+  mixed.theta = Eigen::Vector4d(Truth());
+  mixed.P_theta = Eigen::Matrix4d::Zero();
+  const double s = 0.5, load = 100.0;
+  // Known parameters: the sd is the contact scatter alone, the mean eq. 1.
+  MixedFrictionPrediction p =
+      PredictMixedFriction(mixed, config.surface, s, load);
+  EXPECT_EQ(p.mu, CalcMixedFriction(Truth(), config.surface, s, load));
+  EXPECT_EQ(p.sigma_param, 0.0);
+  EXPECT_EQ(p.sigma,
+            CalcMixedFrictionDispersion(Truth(), config.surface, s, load));
+  EXPECT_NEAR(p.lo95, p.mu - 1.959964 * p.sigma, 1e-15);
+  EXPECT_NEAR(p.hi95, p.mu + 1.959964 * p.sigma, 1e-15);
+  EXPECT_FALSE(p.floored_at_zero);
+  // Uncertain parameters: sigma_param = sqrt(J P J'), here P = c I.
+  mixed.P_theta = 1e-4 * Eigen::Matrix4d::Identity();
+  MixedFrictionThetaRow J;
+  CalcMixedFriction(Truth(), config.surface, s, load, &J);
+  p = PredictMixedFriction(mixed, config.surface, s, load);
+  EXPECT_NEAR(p.sigma_param, std::sqrt(1e-4 * J.squaredNorm()), 1e-15);
+  EXPECT_NEAR(p.sigma, std::hypot(p.sigma_contact, p.sigma_param), 1e-15);
+  // So uncertain that the Gaussian interval reaches below 0: floored, and
+  // said so; the upper bound is unchanged.
+  mixed.P_theta = 1.0 * Eigen::Matrix4d::Identity();
+  p = PredictMixedFriction(mixed, config.surface, s, load);
+  ASSERT_LT(p.mu - 1.959964 * p.sigma, 0.0);
+  EXPECT_EQ(p.lo95, 0.0);
+  EXPECT_TRUE(p.floored_at_zero);
+  EXPECT_NEAR(p.hi95, p.mu + 1.959964 * p.sigma, 1e-12);
+}
+
 TEST(JointIdentification, CoverageOfTheCovarianceOverSeeds) {
   const JointConfig config;
   int inside = 0, total = 0;

@@ -218,28 +218,6 @@ bool Usable(const JointFitResult& r) {
          r.theta.size() == 4 && r.theta.allFinite();
 }
 
-// Friction coefficient of the mixed model with its total sd (contact
-// scatter and parameter uncertainty).
-struct MixedPrediction {
-  double mu = 0, sigma = 0, sigma_contact = 0, sigma_param = 0;
-  double film_um = 0, alpha = 0;
-};
-
-MixedPrediction PredictMixed(const JointFamily& f, double s_um, double load_n) {
-  MixedPrediction p;
-  const MixedFrictionTheta theta = f.mixed.theta.head<4>();
-  MixedFrictionThetaRow J;
-  p.mu = CalcMixedFriction(theta, f.config.surface, s_um, load_n, &J);
-  p.sigma_contact =
-      CalcMixedFrictionDispersion(theta, f.config.surface, s_um, load_n);
-  const Eigen::Matrix4d P = f.mixed.P_theta.topLeftCorner<4, 4>();
-  p.sigma_param = std::sqrt(std::max(0.0, double(J * P * J.transpose())));
-  p.sigma = std::hypot(p.sigma_contact, p.sigma_param);
-  p.film_um = s_um > 0 ? CalcFilmThicknessUm(theta, s_um) : 0.0;
-  p.alpha = CalcSolidFraction(f.config.surface, p.film_um, load_n);
-  return p;
-}
-
 HttpResponse HandleFriction(FrictionLibrary& lib, const HttpRequest& req) {
   const std::string joint = JointParam(req);
   const LoadedFamily lf = LoadFamily(lib, req.params.at(0), joint, &req);
@@ -274,7 +252,8 @@ HttpResponse HandleFriction(FrictionLibrary& lib, const HttpRequest& req) {
                            "); upload data spanning the Sommerfeld number",
                        body);
   }
-  const MixedPrediction p = PredictMixed(f, st.s_um, st.load_n);
+  const MixedFrictionPrediction p =
+      PredictMixedFriction(f.mixed, f.config.surface, st.s_um, st.load_n);
   if (!std::isfinite(p.mu) || !std::isfinite(p.sigma) ||
       !std::isfinite(p.alpha) || !std::isfinite(st.s_um)) {
     // Never 200 with null numbers: the inputs overflow the model (e.g.
@@ -293,7 +272,8 @@ HttpResponse HandleFriction(FrictionLibrary& lib, const HttpRequest& req) {
   body["sigma"] = p.sigma;
   body["sigma_contact"] = p.sigma_contact;
   body["sigma_param"] = p.sigma_param;
-  body["interval95"] = {p.mu - 1.959964 * p.sigma, p.mu + 1.959964 * p.sigma};
+  body["interval95"] = {p.lo95, p.hi95};
+  body["floored_at_zero"] = p.floored_at_zero;
   body["film_um"] = p.film_um;
   body["alpha"] = p.alpha;
   body["regime"] = p.alpha > 0.99   ? "boundary"
@@ -392,7 +372,8 @@ json ResolveFriction(FrictionLibrary& lib, RobotDescription* robot) {
     const double eta = CalcViscosity(lf.family.config.lubricant, ref.temp_c);
     const double s =
         CalcSommerfeldUm(eta, ref.v_mm_s, ref.load_n, lf.family.config.contact);
-    const MixedPrediction p = PredictMixed(lf.family, s, ref.load_n);
+    const MixedFrictionPrediction p = PredictMixedFriction(
+        lf.family.mixed, lf.family.config.surface, s, ref.load_n);
     const double lever =
         j.type == JointType::kRevolute ? ref.radius_mm / 1000.0 : 1.0;
     j.sigma_tau = p.sigma * ref.load_n * lever;

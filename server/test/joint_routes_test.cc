@@ -2,6 +2,7 @@
 // HttpServer::Dispatch on an in-memory library: joint data simulated from a
 // known mixed-lubrication truth, uploaded as CSV.
 #include <cmath>
+#include <cstdio>
 #include <random>
 #include <sstream>
 #include <string>
@@ -152,6 +153,49 @@ TEST_F(JointRoutesTest, UploadFitsTheThreeModelsAndServesFriction) {
       Send("GET", "/v1/materials/steel-oil/model", {{"fingertip", "j2"}});
   ASSERT_EQ(m.status, 200) << m.body;
   EXPECT_TRUE(json::parse(m.body).contains("joint"));
+}
+
+TEST_F(JointRoutesTest, ServedIntervalNeverReachesBelowZero) {
+  // A friction coefficient is a ratio of magnitudes: over states far
+  // inside and far outside the data's span (full film to dry contact),
+  // the mean is >= 0 and the interval's lower bound is floored at 0, and
+  // says so.
+  ASSERT_EQ(Upload(JointCsv()).status, 201);
+  int answered = 0, floored = 0;
+  for (const char* v : {"0.01", "1", "50", "1000", "1e5", "1e7"}) {
+    for (const char* load : {"0.1", "10", "200", "1e4"}) {
+      for (const char* temp : {"20", "80"}) {
+        const HttpResponse r = Send("GET",
+                                    "/v1/materials/steel-oil/joint-friction",
+                                    {{"joint", "j2"},
+                                     {"v_mm_s", v},
+                                     {"load_n", load},
+                                     {"temp_c", temp}});
+        if (r.status != 200) {
+          EXPECT_EQ(r.status, 422) << r.body;  // overflow: refused, named
+          continue;
+        }
+        ++answered;
+        const json a = json::parse(r.body);
+        const double mu = a["mu"].get<double>();
+        const double sigma = a["sigma"].get<double>();
+        const double lo = a["interval95"][0].get<double>();
+        const double hi = a["interval95"][1].get<double>();
+        EXPECT_GE(mu, 0.0) << r.body;
+        EXPECT_GE(lo, 0.0) << r.body;
+        EXPECT_NEAR(hi, mu + 1.959964 * sigma, 1e-12) << r.body;
+        const bool was_below = mu - 1.959964 * sigma < 0;
+        EXPECT_EQ(a["floored_at_zero"].get<bool>(), was_below) << r.body;
+        if (!was_below) {
+          EXPECT_NEAR(lo, mu - 1.959964 * sigma, 1e-12);
+        }
+        floored += was_below;
+      }
+    }
+  }
+  std::printf(
+      "joint-friction: %d states answered, %d floored\n", answered, floored);
+  EXPECT_GT(answered, 30);
 }
 
 TEST_F(JointRoutesTest, BadUploadsAnswer400NamingTheFieldAndStoreNothing) {

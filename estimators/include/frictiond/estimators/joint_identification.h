@@ -114,6 +114,36 @@ JointFitResult FitJointModel(JointModelKind kind,
                              const JointFitOptions& options = {},
                              const std::vector<std::size_t>& rows = {});
 
+/// The identified mixed model (FitJointModel's kMixed result) at a joint
+/// state: the mean friction coefficient (eq. 1) and its sd, from the
+/// contact scatter (CalcMixedFrictionDispersion) and the parameters'
+/// uncertainty (J P_theta J', J = df/dtheta), with the film and the solid
+/// fraction. The 95 % interval is mu +- 1.96 sigma with its lower bound
+/// floored at 0 (a friction coefficient is a ratio of magnitudes; the rule
+/// of mu_admissibility.h): where the sd is large against the mean (a thick
+/// film, little solid contact), the Gaussian interval would reach below 0.
+/// Departure from paper 002: the paper gives the mean and the contact
+/// scatter; the parameter term and the floor are ours.
+struct MixedFrictionPrediction {
+  double mu = 0;                 ///< mean friction coefficient [-]
+  double sigma = 0;              ///< hypot(sigma_contact, sigma_param) [-]
+  double sigma_contact = 0;      ///< between contacts [-]
+  double sigma_param = 0;        ///< from P_theta [-]
+  double lo95 = 0, hi95 = 0;     ///< mu -+ 1.96 sigma, lo95 floored at 0
+  bool floored_at_zero = false;  ///< lo95 was below 0 before the floor
+  double film_um = 0;            ///< film thickness [um]
+  double alpha = 0;              ///< solid-contact load fraction [0, 1]
+};
+
+/// PredictMixedFriction's answer for `mixed` (theta of 4 parameters and
+/// its covariance) at Sommerfeld number sommerfeld_um [um] and load load_n
+/// [N] > 0. Numbers may be non-finite where the terms overflow (the caller
+/// refuses those inputs).
+MixedFrictionPrediction PredictMixedFriction(const JointFitResult& mixed,
+                                             const AsperitySurface& surface,
+                                             double sommerfeld_um,
+                                             double load_n);
+
 /// Held-out comparison of the three models.
 struct JointModelScore {
   JointModelKind kind = JointModelKind::kMixed;
