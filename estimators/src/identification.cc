@@ -15,6 +15,10 @@ namespace frictiond {
 
 namespace {
 
+// CalcMaterialHullCoverage's default: the coverage of the newest 1000
+// strokes is reported.
+constexpr int kMaxHullStrokes = 1000;
+
 // The slipping samples' (Fn, v) and stroke ids: the inputs of the span
 // coverage and the hull.
 struct SlipPoints {
@@ -60,7 +64,7 @@ void FitConditionalCoverageAndLuGre(
   if (options.lugre) {
     // Likewise (the other families stand).
     try {
-      out->lugre = IdentifyLuGreFromStrokes(data);
+      out->lugre = IdentifyLuGreFromStrokes(data, options.memo);
     } catch (const std::exception& e) {
       out->lugre = LuGreIdentification{};
       out->lugre.why = std::string("identification failed: ") + e.what();
@@ -115,8 +119,10 @@ MaterialIdentification IdentifyMaterial(
   const SlipPoints slip = CollectSlipPoints(data);
   if (options.threads == 1) {
     out.fit = FitStochasticModel(data, options.fit);
-    out.hull = CalcMaterialHullCoverage(slip.fn, slip.v, slip.stroke);
+    out.hull = CalcMaterialHullCoverage(
+        slip.fn, slip.v, slip.stroke, kMaxHullStrokes, options.memo);
     FitConditionalCoverageAndLuGre(data, slip, options, &out);
+    if (options.memo) options.memo->Sweep();
     return out;
   }
   // Two shares of about equal cost (profiled on the bundled 42k-sample
@@ -139,7 +145,8 @@ MaterialIdentification IdentifyMaterial(
   }
   try {
     out.fit = FitStochasticModel(data, options.fit);
-    out.hull = CalcMaterialHullCoverage(slip.fn, slip.v, slip.stroke);
+    out.hull = CalcMaterialHullCoverage(
+        slip.fn, slip.v, slip.stroke, kMaxHullStrokes, options.memo);
   } catch (...) {
     // Not started: nobody runs it now; started: it uses `out`, wait.
     if (!side_task->Cancel()) side_done.wait();
@@ -147,6 +154,7 @@ MaterialIdentification IdentifyMaterial(
   }
   side_task->TryRun();  // not started yet: run it here
   side_done.get();      // rethrows the side's exception, if any
+  if (options.memo) options.memo->Sweep();
   return out;
 }
 

@@ -6,12 +6,14 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include <Eigen/Cholesky>
 
+#include "frictiond/estimators/identification_memo.h"
 #include "frictiond/estimators/lugre_identification.h"
 #include "frictiond/estimators/number_text.h"
 #include "frictiond/estimators/preprocessing.h"
@@ -148,9 +150,91 @@ void SignRun(const StrokeData& d,
   }
 }
 
-// Rule steps 2-5: the recognised strokes of the pair, oldest first.
-std::vector<RecognizedStroke> Recognize(const StrokeData& d) {
-  std::vector<RecognizedStroke> out;
+// Rule steps 3-5 on one run [b, e) (step 2's cut), appended to `out`.
+void RecognizeRun(const StrokeData& d,
+                  std::size_t b,
+                  std::size_t e,
+                  double dt_med,
+                  const std::vector<double>* dir,
+                  std::vector<RecognizedStroke>* out_strokes) {
+  std::vector<RecognizedStroke>& out = *out_strokes;
+  const std::size_t m = e - b;
+  if (m >= static_cast<std::size_t>(kMinMovingSamples)) {
+    const std::vector<double> t(d.t_s.begin() + b, d.t_s.begin() + e);
+    const std::vector<double> speed(d.v_mm_s.begin() + b, d.v_mm_s.begin() + e);
+    int kernel = static_cast<int>(std::lround(kSpeedFilterS / dt_med));
+    kernel = std::clamp(kernel | 1, 1, 51);
+    const std::vector<double> filtered = MedianFilter(speed, kernel);
+    const double peak = *std::max_element(filtered.begin(), filtered.end());
+    if (peak > 0) {
+      const double threshold = kRestFraction * peak;
+      std::vector<bool> moving(m);
+      for (std::size_t i = 0; i < m; ++i) moving[i] = filtered[i] > threshold;
+      std::vector<double> v, mu;
+      SignRun(d, b, e, dir, moving, &v, &mu);
+      // Long rests split strokes: mark samples inside them.
+      std::vector<bool> long_rest(m, false);
+      for (std::size_t i = 0; i < m;) {
+        if (moving[i]) {
+          ++i;
+          continue;
+        }
+        std::size_t j = i;
+        while (j + 1 < m && !moving[j + 1]) ++j;
+        if (t[j] - t[i] >= kMinRestS || i == 0 || j + 1 == m)
+          std::fill(long_rest.begin() + i, long_rest.begin() + j + 1, true);
+        i = j + 1;
+      }
+      for (std::size_t i = 0; i < m;) {
+        if (long_rest[i]) {
+          ++i;
+          continue;
+        }
+        std::size_t j = i;
+        while (j + 1 < m && !long_rest[j + 1]) ++j;
+        // Stroke: moving samples [i, j] plus kPadS of rest either side.
+        std::size_t lo = i, hi = j;
+        while (lo > 0 && t[i] - t[lo - 1] <= kPadS) --lo;
+        while (hi + 1 < m && t[hi + 1] - t[j] <= kPadS) ++hi;
+        RecognizedStroke s;
+        s.t_s.assign(t.begin() + lo, t.begin() + hi + 1);
+        s.v_mm_s.assign(v.begin() + lo, v.begin() + hi + 1);
+        s.mu.assign(mu.begin() + lo, mu.begin() + hi + 1);
+        double fn_sum = 0;
+        for (std::size_t k = lo; k <= hi; ++k) fn_sum += d.fn_n[b + k];
+        s.fn_mean_n = fn_sum / static_cast<double>(hi - lo + 1);
+        const std::vector<double> slope =
+            CalcSlopes(s.t_s, s.v_mm_s, kAccelHalfWindowS);
+        std::vector<double> accel;
+        for (std::size_t k = i; k <= j; ++k)
+          if (moving[k]) accel.push_back(std::abs(slope[k - lo]));
+        s.moving = static_cast<int>(accel.size());
+        if (s.moving >= kMinMovingSamples) {
+          const auto q = static_cast<std::size_t>(
+              kAccelPercentile * static_cast<double>(accel.size() - 1));
+          std::nth_element(accel.begin(), accel.begin() + q, accel.end());
+          s.accel_mm_s2 = accel[q];
+          s.kind = s.accel_mm_s2 <= kQuasiStaticMaxAccel
+                       ? LuGreStrokeKind::kQuasiStatic
+                       : (s.accel_mm_s2 >= kDynamicMinAccel
+                              ? LuGreStrokeKind::kDynamic
+                              : LuGreStrokeKind::kIntermediate);
+        }
+        out.push_back(std::move(s));
+        i = j + 1;
+      }
+    }
+  }
+}
+
+// Rule steps 2-5: the recognised strokes of the pair, oldest first. With a
+// memo, a run seen by the previous call (same samples, same median step)
+// is looked up (identification_memo.h); `keep` holds the runs' strokes.
+std::vector<const RecognizedStroke*> Recognize(
+    const StrokeData& d,
+    IdentificationMemo* memo,
+    std::vector<std::shared_ptr<const std::vector<RecognizedStroke>>>* keep) {
+  std::vector<const RecognizedStroke*> out;
   const std::size_t n = d.size();
   if (n < 2) return out;
   const double dt_med = CalcMedianDt(d.t_s);
@@ -163,75 +247,29 @@ std::vector<RecognizedStroke> Recognize(const StrokeData& d) {
     while (e < n && d.t_s[e] >= d.t_s[e - 1] &&
            d.t_s[e] - d.t_s[e - 1] <= kGapFactor * dt_med)
       ++e;
-    // Run [b, e).
-    const std::size_t m = e - b;
-    if (m >= static_cast<std::size_t>(kMinMovingSamples)) {
-      const std::vector<double> t(d.t_s.begin() + b, d.t_s.begin() + e);
-      const std::vector<double> speed(d.v_mm_s.begin() + b,
-                                      d.v_mm_s.begin() + e);
-      int kernel = static_cast<int>(std::lround(kSpeedFilterS / dt_med));
-      kernel = std::clamp(kernel | 1, 1, 51);
-      const std::vector<double> filtered = MedianFilter(speed, kernel);
-      const double peak = *std::max_element(filtered.begin(), filtered.end());
-      if (peak > 0) {
-        const double threshold = kRestFraction * peak;
-        std::vector<bool> moving(m);
-        for (std::size_t i = 0; i < m; ++i) moving[i] = filtered[i] > threshold;
-        std::vector<double> v, mu;
-        SignRun(d, b, e, dir, moving, &v, &mu);
-        // Long rests split strokes: mark samples inside them.
-        std::vector<bool> long_rest(m, false);
-        for (std::size_t i = 0; i < m;) {
-          if (moving[i]) {
-            ++i;
-            continue;
-          }
-          std::size_t j = i;
-          while (j + 1 < m && !moving[j + 1]) ++j;
-          if (t[j] - t[i] >= kMinRestS || i == 0 || j + 1 == m)
-            std::fill(long_rest.begin() + i, long_rest.begin() + j + 1, true);
-          i = j + 1;
-        }
-        for (std::size_t i = 0; i < m;) {
-          if (long_rest[i]) {
-            ++i;
-            continue;
-          }
-          std::size_t j = i;
-          while (j + 1 < m && !long_rest[j + 1]) ++j;
-          // Stroke: moving samples [i, j] plus kPadS of rest either side.
-          std::size_t lo = i, hi = j;
-          while (lo > 0 && t[i] - t[lo - 1] <= kPadS) --lo;
-          while (hi + 1 < m && t[hi + 1] - t[j] <= kPadS) ++hi;
-          RecognizedStroke s;
-          s.t_s.assign(t.begin() + lo, t.begin() + hi + 1);
-          s.v_mm_s.assign(v.begin() + lo, v.begin() + hi + 1);
-          s.mu.assign(mu.begin() + lo, mu.begin() + hi + 1);
-          double fn_sum = 0;
-          for (std::size_t k = lo; k <= hi; ++k) fn_sum += d.fn_n[b + k];
-          s.fn_mean_n = fn_sum / static_cast<double>(hi - lo + 1);
-          const std::vector<double> slope =
-              CalcSlopes(s.t_s, s.v_mm_s, kAccelHalfWindowS);
-          std::vector<double> accel;
-          for (std::size_t k = i; k <= j; ++k)
-            if (moving[k]) accel.push_back(std::abs(slope[k - lo]));
-          s.moving = static_cast<int>(accel.size());
-          if (s.moving >= kMinMovingSamples) {
-            const auto q = static_cast<std::size_t>(
-                kAccelPercentile * static_cast<double>(accel.size() - 1));
-            std::nth_element(accel.begin(), accel.begin() + q, accel.end());
-            s.accel_mm_s2 = accel[q];
-            s.kind = s.accel_mm_s2 <= kQuasiStaticMaxAccel
-                         ? LuGreStrokeKind::kQuasiStatic
-                         : (s.accel_mm_s2 >= kDynamicMinAccel
-                                ? LuGreStrokeKind::kDynamic
-                                : LuGreStrokeKind::kIntermediate);
-          }
-          out.push_back(std::move(s));
-          i = j + 1;
-        }
-      }
+    std::shared_ptr<const std::vector<RecognizedStroke>> run;
+    MemoKey key;
+    const bool keep_run = memo && e - b <= kMaxMemoSamples;
+    if (keep_run) {
+      // Everything RecognizeRun reads: the run's columns, the median step
+      // and whether the direction column exists.
+      MemoKeyBuilder h(0x4c7547726552756eULL);  // "LuGreRun"
+      h.Add(dt_med).Add(static_cast<std::uint64_t>(dir != nullptr));
+      h.Add(d.t_s, b, e).Add(d.v_mm_s, b, e).Add(d.fn_n, b, e);
+      h.Add(d.ft_n, b, e);
+      if (dir) h.Add(*dir, b, e);
+      key = h.Key();
+      run = memo->lugre_runs.Find(key);
     }
+    if (!run) {
+      std::vector<RecognizedStroke> strokes;
+      RecognizeRun(d, b, e, dt_med, dir, &strokes);
+      run = keep_run ? memo->lugre_runs.Insert(key, std::move(strokes))
+                     : std::make_shared<const std::vector<RecognizedStroke>>(
+                           std::move(strokes));
+    }
+    for (const RecognizedStroke& s : *run) out.push_back(&s);
+    keep->push_back(std::move(run));
     b = e;
   }
   return out;
@@ -273,9 +311,10 @@ double Median(std::vector<double> x) {
   return x[h];
 }
 
-std::string Summary(const std::vector<RecognizedStroke>& segments) {
+std::string Summary(const std::vector<const RecognizedStroke*>& segments) {
   int qs = 0, dyn = 0, mid = 0, short_ = 0;
-  for (const RecognizedStroke& s : segments) {
+  for (const RecognizedStroke* p : segments) {
+    const RecognizedStroke& s = *p;
     qs += s.kind == LuGreStrokeKind::kQuasiStatic;
     dyn += s.kind == LuGreStrokeKind::kDynamic;
     mid += s.kind == LuGreStrokeKind::kIntermediate;
@@ -410,20 +449,22 @@ const char* VariantName(DynamicFitVariant v) {
 }
 
 // The family fitter: recognise strokes, run the two steps, encode.
-LuGreIdentification Identify(const StrokeData& all) {
+LuGreIdentification Identify(const StrokeData& all, IdentificationMemo* memo) {
   LuGreIdentification out;
   std::string* note = &out.why;
-  const std::vector<RecognizedStroke> segments = Recognize(all);
-  for (const RecognizedStroke& s : segments) {
-    out.strokes_quasi_static += s.kind == LuGreStrokeKind::kQuasiStatic;
-    out.strokes_dynamic += s.kind == LuGreStrokeKind::kDynamic;
-    out.strokes_intermediate += s.kind == LuGreStrokeKind::kIntermediate;
-    out.strokes_too_short += s.kind == LuGreStrokeKind::kTooShort;
+  std::vector<std::shared_ptr<const std::vector<RecognizedStroke>>> runs;
+  const std::vector<const RecognizedStroke*> segments =
+      Recognize(all, memo, &runs);
+  for (const RecognizedStroke* s : segments) {
+    out.strokes_quasi_static += s->kind == LuGreStrokeKind::kQuasiStatic;
+    out.strokes_dynamic += s->kind == LuGreStrokeKind::kDynamic;
+    out.strokes_intermediate += s->kind == LuGreStrokeKind::kIntermediate;
+    out.strokes_too_short += s->kind == LuGreStrokeKind::kTooShort;
   }
   std::vector<const RecognizedStroke*> qs, dyn;
-  for (const RecognizedStroke& s : segments) {
-    if (s.kind == LuGreStrokeKind::kQuasiStatic) qs.push_back(&s);
-    if (s.kind == LuGreStrokeKind::kDynamic) dyn.push_back(&s);
+  for (const RecognizedStroke* s : segments) {
+    if (s->kind == LuGreStrokeKind::kQuasiStatic) qs.push_back(s);
+    if (s->kind == LuGreStrokeKind::kDynamic) dyn.push_back(s);
   }
   if (qs.empty()) {
     *note =
@@ -692,11 +733,16 @@ LuGreIdentification Identify(const StrokeData& all) {
 }  // namespace
 
 std::vector<RecognizedStroke> RecognizeLuGreStrokes(const StrokeData& data) {
-  return Recognize(data);
+  std::vector<std::shared_ptr<const std::vector<RecognizedStroke>>> runs;
+  std::vector<RecognizedStroke> out;
+  for (const RecognizedStroke* s : Recognize(data, nullptr, &runs))
+    out.push_back(*s);
+  return out;
 }
 
-LuGreIdentification IdentifyLuGreFromStrokes(const StrokeData& data) {
-  return Identify(data);
+LuGreIdentification IdentifyLuGreFromStrokes(const StrokeData& data,
+                                             IdentificationMemo* memo) {
+  return Identify(data, memo);
 }
 
 }  // namespace frictiond

@@ -3,8 +3,11 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <memory>
 #include <stdexcept>
 #include <utility>
+
+#include "frictiond/estimators/identification_memo.h"
 
 namespace frictiond {
 
@@ -277,7 +280,8 @@ HullSpanCoverage CalcHullSpanCoverage(
 MaterialHullCoverage CalcMaterialHullCoverage(const std::vector<double>& fn_n,
                                               const std::vector<double>& v_mm_s,
                                               const std::vector<int>& stroke,
-                                              int max_strokes) {
+                                              int max_strokes,
+                                              IdentificationMemo* memo) {
   if (fn_n.size() != v_mm_s.size())
     throw std::invalid_argument("fn_n and v_mm_s differ in length (" +
                                 std::to_string(fn_n.size()) + " vs " +
@@ -312,9 +316,26 @@ MaterialHullCoverage CalcMaterialHullCoverage(const std::vector<double>& fn_n,
     StrokeHullCoverage s;
     s.stroke = id;
     s.coverage.samples = static_cast<int>(points.size());
-    const std::vector<Point> hull = CalcConvexHull(std::move(points));
-    s.coverage.hull_area = PolygonArea(hull);
-    all.insert(all.end(), hull.begin(), hull.end());
+    // The hull reads the stroke's points only (their order included).
+    MemoKey key;
+    std::shared_ptr<const MemoHull> hull;
+    const bool keep = memo && points.size() <= kMaxMemoSamples;
+    if (keep) {
+      MemoKeyBuilder h(0x5374726f48756c6cULL);  // "StroHull"
+      h.Add(static_cast<std::uint64_t>(points.size()));
+      for (const Point& q : points) h.Add(q.first).Add(q.second);
+      key = h.Key();
+      hull = memo->stroke_hulls.Find(key);
+    }
+    if (!hull) {
+      MemoHull computed;
+      computed.vertices = CalcConvexHull(std::move(points));
+      computed.area = PolygonArea(computed.vertices);
+      hull = keep ? memo->stroke_hulls.Insert(key, std::move(computed))
+                  : std::make_shared<const MemoHull>(std::move(computed));
+    }
+    s.coverage.hull_area = hull->area;
+    all.insert(all.end(), hull->vertices.begin(), hull->vertices.end());
     strokes.push_back(s);
   }
   out.hull = CalcConvexHull(std::move(all));

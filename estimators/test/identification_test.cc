@@ -221,6 +221,101 @@ TEST(IdentifyMaterial, LuGreNeedsTheIdentifyingPair) {
   EXPECT_EQ(off.fit.model.mu.beta, id.fit.model.mu.beta);
 }
 
+// The memo (identification_memo.h) changes no answer: a refit's data as
+// the daemon's ingestor gives it (older uploads, the oldest dropped, a new
+// one last; LuGre strokes among them, and one upload whose clock continues
+// the previous one's, so that their runs merge) identified with and
+// without it. A call looks up the strokes the previous one saw and the
+// memo keeps only what the last call used.
+TEST(IdentifyMaterial, MemoChangesNoAnswerAndKeepsOnlyTheLastCall) {
+  std::vector<StrokeData> uploads;
+  for (std::uint64_t k = 0; k < 9; ++k) {
+    if (k == 2) {
+      uploads.push_back(LuGreMaterial(11));
+      continue;
+    }
+    SimulationSpec spec;
+    spec.strokes = 1 + static_cast<int>(k % 3);
+    StrokeData u = SimulateStrokes(spec, 500 + k);
+    u.slip.clear();
+    u.stroke.clear();
+    if (k == 6) {  // continues upload 5's clock: one run with it
+      const double shift = uploads.back().t_s.back() + 0.01 - u.t_s.front();
+      for (double& t : u.t_s) t += shift;
+    }
+    uploads.push_back(std::move(u));
+  }
+  IdentificationMemo memo;
+  MaterialIdentificationOptions with;
+  with.memo = &memo;
+  const MaterialIdentificationOptions without;
+  std::uint64_t misses_before = 0;
+  double previous_dt = 0;
+  int compared = 0;
+  for (std::size_t last = 4; last < uploads.size(); ++last) {
+    StrokeData data;
+    for (std::size_t k = last - 4; k <= last; ++k) data.Append(uploads[k]);
+    const MaterialIdentification a = IdentifyMaterial(data, with);
+    const MaterialIdentification b = IdentifyMaterial(data, without);
+    ASSERT_EQ(a.fit.status, b.fit.status) << last;
+    EXPECT_EQ(a.fit.model.mu.beta, b.fit.model.mu.beta) << last;
+    EXPECT_EQ(a.fit.model.mu.eps_quantiles, b.fit.model.mu.eps_quantiles);
+    EXPECT_EQ(a.coverage.span_pct, b.coverage.span_pct) << last;
+    EXPECT_EQ(a.hull.hull_area, b.hull.hull_area) << last;
+    EXPECT_EQ(a.hull.hull, b.hull.hull) << last;
+    ASSERT_EQ(a.hull.strokes.size(), b.hull.strokes.size()) << last;
+    for (std::size_t s = 0; s < a.hull.strokes.size(); ++s) {
+      EXPECT_EQ(a.hull.strokes[s].stroke, b.hull.strokes[s].stroke);
+      EXPECT_EQ(a.hull.strokes[s].coverage.hull_area,
+                b.hull.strokes[s].coverage.hull_area);
+      EXPECT_EQ(a.hull.strokes[s].coverage.span_pct,
+                b.hull.strokes[s].coverage.span_pct);
+    }
+    EXPECT_EQ(a.lugre.identified, b.lugre.identified) << last;
+    EXPECT_EQ(a.lugre.why, b.lugre.why) << last;
+    EXPECT_EQ(a.lugre.strokes_quasi_static, b.lugre.strokes_quasi_static);
+    EXPECT_EQ(a.lugre.strokes_dynamic, b.lugre.strokes_dynamic);
+    EXPECT_EQ(a.lugre.strokes_too_short, b.lugre.strokes_too_short);
+    if (a.lugre.identified) {
+      EXPECT_EQ(a.lugre.family.theta, b.lugre.family.theta) << last;
+      EXPECT_EQ(a.lugre.family.P_theta, b.lugre.family.P_theta) << last;
+    }
+    EXPECT_EQ(a.conditional.valid, b.conditional.valid) << last;
+    // Bounded: what this call used (its runs and its strokes' hulls).
+    const std::size_t runs = memo.lugre_runs.size();
+    const double step = CalcMedianDt(data.t_s);
+    std::size_t data_runs = 1;  // RecognizeLuGreStrokes' step 2 cuts
+    for (std::size_t i = 1; i < data.size(); ++i)
+      data_runs += data.t_s[i] < data.t_s[i - 1] ||
+                   data.t_s[i] - data.t_s[i - 1] > 10 * step;
+    EXPECT_GE(runs, 1u);
+    EXPECT_LE(runs, data_runs) << last;
+    EXPECT_LE(memo.stroke_hulls.size(), a.hull.strokes.size()) << last;
+    // The same data again: every step looked up.
+    const std::uint64_t misses = memo.lugre_runs.misses();
+    IdentifyMaterial(data, with);
+    EXPECT_EQ(memo.lugre_runs.misses(), misses) << last;
+    EXPECT_EQ(memo.lugre_runs.size(), runs) << last;
+    // After the first call, a new upload is one new run, or two when its
+    // clock continues the previous upload's (the merged run is new). When
+    // dropping the oldest upload moves the median time step (the LuGre
+    // upload's rate differs), every run is new: the step is an input.
+    const double dt = step;
+    if (last > 4 && dt == previous_dt) {
+      EXPECT_LE(misses - misses_before, last == 6 ? 2u : 1u) << last;
+      ++compared;
+    }
+    misses_before = misses;
+    previous_dt = dt;
+  }
+  EXPECT_GE(compared, 2);
+  EXPECT_GT(memo.lugre_runs.hits(), 0u);
+  EXPECT_GT(memo.stroke_hulls.hits(), 0u);
+  memo.Clear();
+  EXPECT_EQ(memo.lugre_runs.size(), 0u);
+  EXPECT_EQ(memo.stroke_hulls.size(), 0u);
+}
+
 TEST(IdentifyMaterial, RejectsBadOptions) {
   const StrokeData raw = Unlabelled(32);
   MaterialIdentificationOptions options;

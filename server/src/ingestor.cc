@@ -82,6 +82,8 @@ struct Ingestor::Pair {
   // The last refit's FitChoice::stride: an upload at an index that is not a
   // multiple of it (> 1) is never chosen again, so its parsed data goes.
   std::size_t stride = 1;
+  // Per-stroke results of the pair's refits (thread-safe on its own).
+  IdentificationMemo memo;
 };
 
 Ingestor::PairLock::PairLock(std::shared_ptr<Pair> pair,
@@ -114,7 +116,10 @@ void Ingestor::Shed(Pair& pair) {
   cached_samples_ -= pair.samples;
   pair.uploads.clear();
   pair.samples = 0;
+  pair.memo.Clear();
 }
+
+IdentificationMemo& Ingestor::PairLock::memo() const { return pair_->memo; }
 
 void Ingestor::Drop(Pair& pair) {
   Shed(pair);

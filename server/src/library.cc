@@ -539,7 +539,8 @@ IngestResult FrictionLibrary::IngestStrokes(const std::string& material,
                                 upload,
                                 previous.get(),
                                 labelling,
-                                slot);
+                                slot,
+                                &pair.memo());
   if (fit.status != FitStatus::kOk && fit.status != FitStatus::kPartial) {
     throw RequestError(
         StatusCode::kFailedPrecondition,
@@ -610,7 +611,8 @@ FrictionLibrary::ModelSetFit FrictionLibrary::FitModelSet(
     const StrokeData& upload,
     const CachedModel* previous,
     const SlipLabelOptions& labelling,
-    const FitWorkers::InFlight& slot) const {
+    const FitWorkers::InFlight& slot,
+    IdentificationMemo* memo) const {
   StochasticFitOptions fit_options;
   if (previous && previous->set.stochastic) {
     // Keep an extended model's terms (product columns included) and its eps
@@ -646,6 +648,7 @@ FrictionLibrary::ModelSetFit FrictionLibrary::FitModelSet(
   };
   MaterialIdentificationOptions id_options;
   id_options.fit = fit_options;
+  id_options.memo = memo;  // the pair's: its older strokes' steps kept
   if (slot.split()) {
     id_options.post = [this](std::function<void()> task) {
       fit_workers_->PostShare(std::move(task));

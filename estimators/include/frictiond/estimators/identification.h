@@ -22,6 +22,7 @@
 
 #include <functional>
 
+#include "frictiond/estimators/identification_memo.h"
 #include "frictiond/estimators/lugre_identification.h"
 #include "frictiond/estimators/slip_likelihood.h"
 #include "frictiond/estimators/span_coverage.h"
@@ -52,6 +53,13 @@ struct MaterialIdentificationOptions {
   /// synchronously while holding a lock the task could need, and must not
   /// throw after taking the task (a task it drops is run by the caller).
   std::function<void(std::function<void()>)> post;
+  /// Optional, kept by the caller between calls for the same material
+  /// (identification_memo.h): the per-stroke steps (the hull of a stroke's
+  /// slipping samples, the LuGre recognition of a run) of strokes an
+  /// earlier call saw are looked up. The results are the same with or
+  /// without it; the call sweeps it at its end (it keeps what this call
+  /// used). One call at a time per memo.
+  IdentificationMemo* memo = nullptr;
 };
 
 /// Every family identified from one material's strokes. A family that

@@ -46,6 +46,8 @@
 
 namespace frictiond {
 
+struct IdentificationMemo;  // identification_memo.h
+
 /// One stroke in signed form. Copyable and movable value type.
 struct LuGreStroke {
   Eigen::VectorXd t_s;     ///< sample times [s], strictly increasing
@@ -467,6 +469,10 @@ struct LuGreIdentification {
 /// pools every recognised stroke so that later uploads refine the model.
 /// Needs at least one stroke of each kind; otherwise identified = false
 /// with the reason. Never throws for data (statuses are results).
-LuGreIdentification IdentifyLuGreFromStrokes(const StrokeData& data);
+/// `memo` (optional, identification_memo.h): the recognition of a run seen
+/// by an earlier call with the same memo is looked up; the answer is the
+/// same with or without it.
+LuGreIdentification IdentifyLuGreFromStrokes(
+    const StrokeData& data, IdentificationMemo* memo = nullptr);
 
 }  // namespace frictiond

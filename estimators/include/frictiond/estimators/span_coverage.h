@@ -24,6 +24,8 @@
 
 namespace frictiond {
 
+struct IdentificationMemo;  // identification_memo.h
+
 /// An axis-aligned region of the Fn-v plane [N] x [mm/s].
 struct SpanRect {
   double fn_min_n = 0.0;
@@ -115,10 +117,15 @@ struct MaterialHullCoverage {
 /// stroke costs O(n_s log n_s) against the material hull computed once.
 /// @throws std::invalid_argument when paired arrays differ in length or
 /// max_strokes < 0.
-MaterialHullCoverage CalcMaterialHullCoverage(const std::vector<double>& fn_n,
-                                              const std::vector<double>& v_mm_s,
-                                              const std::vector<int>& stroke,
-                                              int max_strokes = 1000);
+/// `memo` (optional, identification_memo.h): a stroke's hull seen by an
+/// earlier call with the same memo (same samples in the same order) is
+/// looked up; the answer is the same with or without it.
+MaterialHullCoverage CalcMaterialHullCoverage(
+    const std::vector<double>& fn_n,
+    const std::vector<double>& v_mm_s,
+    const std::vector<int>& stroke,
+    int max_strokes = 1000,
+    IdentificationMemo* memo = nullptr);
 
 /// Convex hull of the points (Andrew's monotone chain), counter-clockwise
 /// from the point with the smallest first coordinate, without collinear

@@ -39,6 +39,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "frictiond/estimators/identification_memo.h"
 #include "frictiond/estimators/preprocessing.h"
 #include "frictiond/estimators/stroke_data.h"
 #include "frictiond/storage/store.h"
@@ -116,6 +117,10 @@ class Ingestor {
     PairLock& operator=(PairLock&&) noexcept = default;
     const std::string& material() const { return material_; }
     const std::string& fingertip() const { return fingertip_; }
+    /// The pair's identification memo (identification_memo.h): its
+    /// refits' per-stroke results, kept while the pair's uploads are
+    /// cached (cleared when they are shed).
+    IdentificationMemo& memo() const;
 
    private:
     friend class Ingestor;

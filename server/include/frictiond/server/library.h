@@ -290,14 +290,17 @@ class FrictionLibrary {
   /// eq. (1) with eps (keeping an extended previous model's terms when the
   /// data has their inputs) on this thread, the registered family fitters on
   /// a second one, and the previous version's other families carried over.
-  /// Reads only its arguments and fitters_ (no store, no cache).
+  /// Reads only its arguments and fitters_ (no store, no cache); `memo` is
+  /// the pair's (Ingestor::PairLock::memo()): the older strokes' per-stroke
+  /// steps are looked up there, with the same results.
   ModelSetFit FitModelSet(const std::string& material,
                           const std::string& fingertip,
                           const StrokeData& strokes,
                           const StrokeData& upload,
                           const CachedModel* previous,
                           const SlipLabelOptions& labelling,
-                          const FitWorkers::InFlight& slot) const;
+                          const FitWorkers::InFlight& slot,
+                          IdentificationMemo* memo) const;
   /// Caches a version just committed (made from what was committed).
   std::shared_ptr<const CachedModel> Publish(const nlohmann::json& doc,
                                              const ModelRecord& record);
