@@ -268,7 +268,7 @@ void RegisterCoreCommands(CLI::App& app, Globals& g) {
         json out{{"material", id}, {"version", m.version}, {"ratio", ft / fn}};
         if (at_state) {
           // The daemon's slip-likelihood at a grasp state: one rule
-          // (grip_force.h, CalcServedHoldSlip).
+          // (mu_admissibility.h, CalcServedHoldSlip).
           ServedHoldSlip s;
           try {
             s = CalcServedHoldSlip(*m.stochastic, fn, ft, state);

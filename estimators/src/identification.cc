@@ -15,10 +15,6 @@ namespace frictiond {
 
 namespace {
 
-// CalcMaterialHullCoverage's default: the coverage of the newest 1000
-// strokes is reported.
-constexpr int kMaxHullStrokes = 1000;
-
 // The slipping samples' (Fn, v) and stroke ids: the inputs of the span
 // coverage and the hull.
 struct SlipPoints {
@@ -120,7 +116,7 @@ MaterialIdentification IdentifyMaterial(
   if (options.threads == 1) {
     out.fit = FitStochasticModel(data, options.fit);
     out.hull = CalcMaterialHullCoverage(
-        slip.fn, slip.v, slip.stroke, kMaxHullStrokes, options.memo);
+        slip.fn, slip.v, slip.stroke, kDefaultMaxHullStrokes, options.memo);
     FitConditionalCoverageAndLuGre(data, slip, options, &out);
     if (options.memo) options.memo->Sweep();
     return out;
@@ -146,7 +142,7 @@ MaterialIdentification IdentifyMaterial(
   try {
     out.fit = FitStochasticModel(data, options.fit);
     out.hull = CalcMaterialHullCoverage(
-        slip.fn, slip.v, slip.stroke, kMaxHullStrokes, options.memo);
+        slip.fn, slip.v, slip.stroke, kDefaultMaxHullStrokes, options.memo);
   } catch (...) {
     // Not started: nobody runs it now; started: it uses `out`, wait.
     if (!side_task->Cancel()) side_done.wait();

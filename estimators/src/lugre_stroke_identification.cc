@@ -247,27 +247,24 @@ std::vector<const RecognizedStroke*> Recognize(
     while (e < n && d.t_s[e] >= d.t_s[e - 1] &&
            d.t_s[e] - d.t_s[e - 1] <= kGapFactor * dt_med)
       ++e;
-    std::shared_ptr<const std::vector<RecognizedStroke>> run;
-    MemoKey key;
-    const bool keep_run = memo && e - b <= kMaxMemoSamples;
-    if (keep_run) {
-      // Everything RecognizeRun reads: the run's columns, the median step
-      // and whether the direction column exists.
-      MemoKeyBuilder h(0x4c7547726552756eULL);  // "LuGreRun"
-      h.Add(dt_med).Add(static_cast<std::uint64_t>(dir != nullptr));
-      h.Add(d.t_s, b, e).Add(d.v_mm_s, b, e).Add(d.fn_n, b, e);
-      h.Add(d.ft_n, b, e);
-      if (dir) h.Add(*dir, b, e);
-      key = h.Key();
-      run = memo->lugre_runs.Find(key);
-    }
-    if (!run) {
-      std::vector<RecognizedStroke> strokes;
-      RecognizeRun(d, b, e, dt_med, dir, &strokes);
-      run = keep_run ? memo->lugre_runs.Insert(key, std::move(strokes))
-                     : std::make_shared<const std::vector<RecognizedStroke>>(
-                           std::move(strokes));
-    }
+    std::shared_ptr<const std::vector<RecognizedStroke>> run = Memoized(
+        memo ? &memo->lugre_runs : nullptr,
+        e - b,
+        [&] {
+          // Everything RecognizeRun reads: the run's columns, the median
+          // step and whether the direction column exists.
+          MemoKeyBuilder h(0x4c7547726552756eULL);  // "LuGreRun"
+          h.Add(dt_med).Add(static_cast<std::uint64_t>(dir != nullptr));
+          h.Add(d.t_s, b, e).Add(d.v_mm_s, b, e).Add(d.fn_n, b, e);
+          h.Add(d.ft_n, b, e);
+          if (dir) h.Add(*dir, b, e);
+          return h.Key();
+        },
+        [&] {
+          std::vector<RecognizedStroke> strokes;
+          RecognizeRun(d, b, e, dt_med, dir, &strokes);
+          return strokes;
+        });
     for (const RecognizedStroke& s : *run) out.push_back(&s);
     keep->push_back(std::move(run));
     b = e;

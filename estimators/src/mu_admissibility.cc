@@ -110,9 +110,9 @@ ServedHoldSlip CalcServedHoldSlip(const StochasticFrictionModel& model,
                                   double load_n,
                                   const GripForceOptions& options) {
   ServedHoldSlip out;
-  const InputValues inputs{{"fn_n", fn_n}, {"v_mm_s", options.v_mm_s}};
-  out.at = PredictMu(model, inputs);
-  out.check = CheckServableMu(model, inputs, out.at);
+  out.inputs = {{"fn_n", fn_n}, {"v_mm_s", options.v_mm_s}};
+  out.at = PredictMu(model, out.inputs);
+  out.check = CheckServableMu(model, out.inputs, out.at);
   if (out.check.admissible)
     out.probability = CalcHoldSlipProbability(model, fn_n, load_n, options);
   return out;

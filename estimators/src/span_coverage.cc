@@ -317,23 +317,21 @@ MaterialHullCoverage CalcMaterialHullCoverage(const std::vector<double>& fn_n,
     s.stroke = id;
     s.coverage.samples = static_cast<int>(points.size());
     // The hull reads the stroke's points only (their order included).
-    MemoKey key;
-    std::shared_ptr<const MemoHull> hull;
-    const bool keep = memo && points.size() <= kMaxMemoSamples;
-    if (keep) {
-      MemoKeyBuilder h(0x5374726f48756c6cULL);  // "StroHull"
-      h.Add(static_cast<std::uint64_t>(points.size()));
-      for (const Point& q : points) h.Add(q.first).Add(q.second);
-      key = h.Key();
-      hull = memo->stroke_hulls.Find(key);
-    }
-    if (!hull) {
-      MemoHull computed;
-      computed.vertices = CalcConvexHull(std::move(points));
-      computed.area = PolygonArea(computed.vertices);
-      hull = keep ? memo->stroke_hulls.Insert(key, std::move(computed))
-                  : std::make_shared<const MemoHull>(std::move(computed));
-    }
+    const std::shared_ptr<const MemoHull> hull = Memoized(
+        memo ? &memo->stroke_hulls : nullptr,
+        points.size(),
+        [&points] {
+          MemoKeyBuilder h(0x5374726f48756c6cULL);  // "StroHull"
+          h.Add(static_cast<std::uint64_t>(points.size()));
+          for (const Point& q : points) h.Add(q.first).Add(q.second);
+          return h.Key();
+        },
+        [&points] {
+          MemoHull computed;
+          computed.vertices = CalcConvexHull(std::move(points));
+          computed.area = PolygonArea(computed.vertices);
+          return computed;
+        });
     s.coverage.hull_area = hull->area;
     all.insert(all.end(), hull->vertices.begin(), hull->vertices.end());
     strokes.push_back(s);

@@ -444,7 +444,7 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
         MuPrediction at;
         double L = 0.0;
         if (at_state) {
-          // The served forward model (grip_force.h, CalcServedHoldSlip):
+          // The served forward model (mu_admissibility.h, CalcServedHoldSlip):
           // a servable mean mu at the state, then P(slip in the hold).
           ServedHoldSlip s;
           try {
@@ -454,8 +454,7 @@ void RegisterCoreRoutes(HttpServer& http, FrictionLibrary& lib) {
             throw RequestError(
                 StatusCode::kFailedPrecondition, "hold_s", e.what());
           }
-          RequireServable(s.check,
-                          InputValues{{"fn_n", fn}, {"v_mm_s", state.v_mm_s}});
+          RequireServable(s.check, s.inputs);
           at = std::move(s.at);
           L = s.probability;
         } else {

@@ -166,6 +166,23 @@ class MemoTable {
   std::uint64_t hits_ = 0, misses_ = 0;
 };
 
+/// The value `compute()` gives for a run or stroke of `samples` samples:
+/// looked up in `table` under `key()`, and kept there when computed. With
+/// no table, or more than kMaxMemoSamples samples, it is computed only (and
+/// `key` is not called). `key` is called before `compute`, so `compute`
+/// may consume what `key` reads.
+template <class Value, class KeyFn, class ComputeFn>
+std::shared_ptr<const Value> Memoized(MemoTable<Value>* table,
+                                      std::size_t samples,
+                                      KeyFn key,
+                                      ComputeFn compute) {
+  if (table == nullptr || samples > kMaxMemoSamples)
+    return std::make_shared<const Value>(compute());
+  const MemoKey k = key();
+  if (std::shared_ptr<const Value> hit = table->Find(k)) return hit;
+  return table->Insert(k, compute());
+}
+
 /// A stroke's hull (span_coverage.h): vertices and area.
 struct MemoHull {
   std::vector<std::pair<double, double>> vertices;

@@ -84,7 +84,9 @@ bool FloorAtZero(TargetForce* f);
 /// servable first (CheckServableMu, as for predict and grip-force at the
 /// same state); only then is the probability computed.
 struct ServedHoldSlip {
-  /// PredictMu at {fn_n, v_mm_s}: the extrapolation flags of the answer.
+  /// {fn_n, v_mm_s}: the inputs `at` and `check` are of.
+  InputValues inputs;
+  /// PredictMu at `inputs`: the extrapolation flags of the answer.
   MuPrediction at;
   /// CheckServableMu of `at`; when not admissible, `probability` is NaN.
   MeanMuCheck check;

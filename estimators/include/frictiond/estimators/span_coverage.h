@@ -26,6 +26,10 @@ namespace frictiond {
 
 struct IdentificationMemo;  // identification_memo.h
 
+/// CalcMaterialHullCoverage's default max_strokes: the newest strokes
+/// whose coverage is reported.
+inline constexpr int kDefaultMaxHullStrokes = 1000;
+
 /// An axis-aligned region of the Fn-v plane [N] x [mm/s].
 struct SpanRect {
   double fn_min_n = 0.0;
@@ -124,7 +128,7 @@ MaterialHullCoverage CalcMaterialHullCoverage(
     const std::vector<double>& fn_n,
     const std::vector<double>& v_mm_s,
     const std::vector<int>& stroke,
-    int max_strokes = 1000,
+    int max_strokes = kDefaultMaxHullStrokes,
     IdentificationMemo* memo = nullptr);
 
 /// Convex hull of the points (Andrew's monotone chain), counter-clockwise
