@@ -346,7 +346,7 @@ namespace internal {
 // E_a is Simpson in the normal score s of a = G^-1(Phi(s)) on [-8.5, 8.5].
 class OffsetHold {
  public:
-  OffsetHold(const EpsTimeModel& t, int n) : m_(t.offset), n_(n) {
+  OffsetHold(const EpsTimeModel& t, int n) : m_(t.offset) {
     CheckPhi(n, t.phi);
     CheckOffsetModel(t);
     const EpsOffsetModel& m = m_;
@@ -437,8 +437,7 @@ class OffsetHold {
     return 0.5 * (lo + hi);
   }
 
-  EpsOffsetModel m_;  // a copy: the rule may outlive the model
-  int n_;
+  EpsOffsetModel m_;     // a copy: the rule may outlive the model
   bool linear_ = false;  // u_t a linear AR(1) (innovation quantiles)
   SurvivalTable survival_;
   LinearSurvivalTable linear_survival_;

@@ -312,9 +312,12 @@ MaterialHullCoverage CalcMaterialHullCoverage(const std::vector<double>& fn_n,
   }
   std::vector<StrokeHullCoverage> strokes;
   strokes.reserve(by.size());
-  for (auto& [id, points] : by) {
+  for (auto& entry : by) {
+    // A named reference, not a structured binding: C++17 lambdas cannot
+    // capture bindings (clang rejects it; the fuzz build uses clang).
+    std::vector<Point>& points = entry.second;
     StrokeHullCoverage s;
-    s.stroke = id;
+    s.stroke = entry.first;
     s.coverage.samples = static_cast<int>(points.size());
     // The hull reads the stroke's points only (their order included).
     const std::shared_ptr<const MemoHull> hull = Memoized(
