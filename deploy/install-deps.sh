@@ -14,6 +14,7 @@ packages=(
   libmujoco-dev        # MuJoCo 2.2 for the simulator adapter sim/mujoco
   libqhull-dev         # (mujoco::mujoco names /usr/include/libqhull_r in its include path)
   libssl-dev           # SHA-256 / HMAC-SHA256 (API tokens, signed LCM)
+  libjemalloc-dev      # the daemon's allocator (server/include/frictiond/server/allocator.h)
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
   libtinyxml2-dev      # XML parser that checks the MJCF/SDF/URDF exports

@@ -8,10 +8,10 @@
 #include <thread>
 
 #include <CLI/CLI.hpp>
-#include <malloc.h>
 #include <signal.h>
 #include <sys/stat.h>
 
+#include "frictiond/server/allocator.h"
 #include "frictiond/server/daemon.h"
 
 #ifndef FRICTIOND_DEFAULT_DATA_DIR
@@ -20,41 +20,22 @@
 
 namespace {
 
-/// glibc's allocator, set for a daemon whose uploads each allocate and free
-/// a few MB (a bounded refit's copy of up to `fit_sample_cap` samples and
-/// its design matrices). By default blocks above a dynamic threshold are
-/// mmap'ed and unmapped again, and a thread arena's free top is handed back
-/// (madvise) after each upload, so the next upload page-faults the same
-/// memory in again: profiled on `bench/run upload_parallel`, page faults,
-/// madvise and malloc took about a quarter of the daemon's CPU per upload.
-/// Blocks below 8 MiB now come from the arenas, an arena keeps up to
-/// 16 MiB of free top for the next upload, and there are at most 4 arenas
-/// (glibc's default is 8 per core; the daemon's threads mostly wait). The
-/// cost is memory held, at most 4 x 16 MiB; memory in use is unchanged
-/// (`bench/soak` measures RSS growth). GLIBC_TUNABLES cannot override this
-/// (it is applied after them).
-void TuneAllocator() {
-  mallopt(M_ARENA_MAX, 4);
-  mallopt(M_MMAP_THRESHOLD, 8 << 20);
-  mallopt(M_TRIM_THRESHOLD, 16 << 20);
-}
-
-/// Hands memory freed inside the arenas back to the system every
-/// `period` (malloc_trim(0): page-aligned free chunks anywhere in an arena,
-/// not only its top). M_TRIM_THRESHOLD trims an arena's top only, so pages
-/// freed between live blocks stayed resident: in a 40 s soak the heap in
-/// use was 22-90 MB while the allocator kept 108 -> 269 MB free and RSS
-/// grew with it (GET /metrics frictiond_heap_*). A trim every 30 s costs a
-/// walk of the arenas' free lists and, for pages in use again, their page
-/// faults; per upload (stop 20) it cost a quarter of the CPU, so it is not
-/// done there.
+/// Hands memory freed inside the allocator back to the system every
+/// `period` (frictiond::ReleaseFreeHeap; with glibc, malloc_trim(0):
+/// page-aligned free chunks anywhere in an arena, not only its top).
+/// M_TRIM_THRESHOLD trims an arena's top only, so pages freed between live
+/// blocks stayed resident: in a 40 s soak the heap in use was 22-90 MB while
+/// the allocator kept 108 -> 269 MB free and RSS grew with it (GET /metrics
+/// frictiond_heap_*). A trim every 30 s costs a walk of the arenas' free lists
+/// and, for pages in use again, their page faults; per upload (stop 20) it cost
+/// a quarter of the CPU, so it is not done there.
 class HeapTrimmer {
  public:
   explicit HeapTrimmer(std::chrono::seconds period)
       : thread_([this, period] {
           std::unique_lock<std::mutex> lock(mu_);
           while (!cv_.wait_for(lock, period, [this] { return stop_; }))
-            ::malloc_trim(0);
+            frictiond::ReleaseFreeHeap();
         }) {}
   ~HeapTrimmer() {
     {
@@ -75,7 +56,7 @@ class HeapTrimmer {
 }  // namespace
 
 int main(int argc, char** argv) {
-  TuneAllocator();
+  frictiond::TuneHeapAllocator();
   frictiond::DaemonConfig config;
   config.data_dir = FRICTIOND_DEFAULT_DATA_DIR;
   CLI::App app{"frictiond: friction material-library daemon"};

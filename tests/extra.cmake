@@ -18,6 +18,11 @@ if(TARGET http_hostile_test)
   target_link_libraries(http_hostile_test PRIVATE ZLIB::ZLIB)
   set_tests_properties(http_hostile_test PROPERTIES TIMEOUT 120)
 endif()
+# The daemon's allocator (jemalloc when the build links it), named in its
+# heap gauges' help text.
+if(TARGET http_api_test AND FRICTIOND_HAVE_JEMALLOC)
+  target_compile_definitions(http_api_test PRIVATE FRICTIOND_DAEMON_JEMALLOC=1)
+endif()
 foreach(_t http_api_test bad_input_test crash_safety_test http_hostile_test)
   if(TARGET ${_t})
     set_tests_properties(${_t} PROPERTIES LABELS "daemon")

@@ -368,6 +368,16 @@ TEST_F(HttpApiTest, MetricsCountRequestsAndLatency) {
     ASSERT_NE(g, std::string::npos) << gauge << text;
     EXPECT_GE(std::stod(text.substr(g + std::strlen(gauge))), 0) << gauge;
   }
+  // The heap in use is read from the allocator that runs (a daemon serving
+  // the bundled data holds megabytes), and its help names that allocator.
+  const std::string in_use = "\nfrictiond_heap_in_use_bytes ";
+  EXPECT_GT(std::stod(text.substr(text.find(in_use) + in_use.size())), 1e6);
+#ifdef FRICTIOND_DAEMON_JEMALLOC
+  const char* allocator = "(jemalloc: stats.allocated)";
+#else
+  const char* allocator = "(glibc: mallinfo2 uordblks + hblkhd)";
+#endif
+  EXPECT_NE(text.find(allocator), std::string::npos) << text;
 }
 
 TEST_F(HttpApiTest, BundledDatasetIsServed) {

@@ -3,7 +3,7 @@
 #include <cstdio>
 #include <sstream>
 
-#include <malloc.h>
+#include "frictiond/server/allocator.h"
 
 namespace frictiond {
 
@@ -99,17 +99,24 @@ std::string RenderSeries(const char* name,
 }
 
 std::string RenderHeapGauges() {
-  const struct mallinfo2 m = ::mallinfo2();
+  const HeapStats h = ReadHeapStats();
+  const std::string allocator = ToString(CurrentHeapAllocator());
+  const std::string in_use_help =
+      "Heap bytes allocated and not freed (" + allocator +
+      (allocator == "glibc" ? ": mallinfo2 uordblks + hblkhd)."
+                            : ": stats.allocated).");
+  const std::string free_help =
+      "Heap bytes freed but kept by the allocator (" + allocator +
+      (allocator == "glibc" ? ": mallinfo2 fordblks)."
+                            : ": stats.resident - stats.allocated).");
   return RenderSeries("frictiond_heap_in_use_bytes",
                       "gauge",
-                      "Heap bytes allocated and not freed (glibc mallinfo2 "
-                      "uordblks + hblkhd).",
-                      m.uordblks + m.hblkhd) +
+                      in_use_help.c_str(),
+                      h.in_use) +
          RenderSeries("frictiond_heap_free_bytes",
                       "gauge",
-                      "Heap bytes freed but kept by the allocator (glibc "
-                      "mallinfo2 fordblks).",
-                      m.fordblks);
+                      free_help.c_str(),
+                      h.kept_free);
 }
 
 }  // namespace frictiond
