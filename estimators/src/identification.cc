@@ -56,7 +56,8 @@ void FitConditionalCoverageAndLuGre(
     out->conditional = ConditionalSlipLikelihood{};
     out->conditional.why = std::string("identification failed: ") + e.what();
   }
-  out->coverage = CalcSpanCoverage(slip.fn, slip.v, options.reference);
+  out->coverage = CalcSpanCoverage(
+      slip.fn, slip.v, options.reference, slip.stroke, options.memo);
   if (options.lugre) {
     // Likewise (the other families stand).
     try {

@@ -153,32 +153,23 @@ double CalcConvexHullArea(std::vector<std::pair<double, double>> p) {
   return PolygonArea(CalcConvexHull(std::move(p)));
 }
 
-SpanCoverage CalcSpanCoverage(const std::vector<double>& fn_n,
-                              const std::vector<double>& v_mm_s,
-                              const SpanRect& reference) {
-  if (!reference.IsValid())
-    throw std::invalid_argument(
-        "reference: fn and v ranges must be finite and non-empty");
-  if (fn_n.size() != v_mm_s.size())
-    throw std::invalid_argument("fn_n and v_mm_s differ in length (" +
-                                std::to_string(fn_n.size()) + " vs " +
-                                std::to_string(v_mm_s.size()) + ")");
-  SpanCoverage out;
-  out.missing = reference;
-  std::vector<std::pair<double, double>> points(fn_n.size());
-  std::size_t kept = 0;
-  for (std::size_t i = 0; i < fn_n.size(); ++i) {
-    // Clamped into the reference; branch-free (non-finite ones are written
-    // and then overwritten).
-    points[kept] = {
-        std::min(std::max(fn_n[i], reference.fn_min_n), reference.fn_max_n),
-        std::min(std::max(v_mm_s[i], reference.v_min_mm_s),
-                 reference.v_max_mm_s)};
-    kept += std::isfinite(fn_n[i]) && std::isfinite(v_mm_s[i]);
-  }
-  points.resize(kept);
-  out.samples = static_cast<int>(points.size());
-  if (points.empty()) return out;
+namespace {
+
+// p clamped into the reference (branch-free: a non-finite point is
+// clamped too, the caller drops it).
+Point ClampInto(const SpanRect& r, double fn, double v) {
+  return {std::min(std::max(fn, r.fn_min_n), r.fn_max_n),
+          std::min(std::max(v, r.v_min_mm_s), r.v_max_mm_s)};
+}
+
+// The covered extent, span and missing region of `points` (clamped and
+// finite, or the hull vertices of such point sets: both have the same
+// extent and hull), written to `out` (samples and missing set already).
+void FinishSpanCoverage(std::vector<Point> points,
+                        const SpanRect& reference,
+                        SpanCoverage* result) {
+  SpanCoverage& out = *result;
+  if (points.empty()) return;
   // Covered extent, with two points per step (a single running min/max
   // would wait for each comparison before the next).
   auto extend = [](SpanRect* r, double fn, double v) {
@@ -238,6 +229,94 @@ SpanCoverage CalcSpanCoverage(const std::vector<double>& fn_n,
                c.v_max_mm_s,
                &out.missing.v_min_mm_s,
                &out.missing.v_max_mm_s);
+}
+
+// Validates the arguments shared by both forms of CalcSpanCoverage.
+void CheckSpanArguments(const std::vector<double>& fn_n,
+                        const std::vector<double>& v_mm_s,
+                        const SpanRect& reference) {
+  if (!reference.IsValid())
+    throw std::invalid_argument(
+        "reference: fn and v ranges must be finite and non-empty");
+  if (fn_n.size() != v_mm_s.size())
+    throw std::invalid_argument("fn_n and v_mm_s differ in length (" +
+                                std::to_string(fn_n.size()) + " vs " +
+                                std::to_string(v_mm_s.size()) + ")");
+}
+
+}  // namespace
+
+SpanCoverage CalcSpanCoverage(const std::vector<double>& fn_n,
+                              const std::vector<double>& v_mm_s,
+                              const SpanRect& reference) {
+  CheckSpanArguments(fn_n, v_mm_s, reference);
+  SpanCoverage out;
+  out.missing = reference;
+  std::vector<Point> points(fn_n.size());
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < fn_n.size(); ++i) {
+    // Non-finite points are written and then overwritten.
+    points[kept] = ClampInto(reference, fn_n[i], v_mm_s[i]);
+    kept += std::isfinite(fn_n[i]) && std::isfinite(v_mm_s[i]);
+  }
+  points.resize(kept);
+  out.samples = static_cast<int>(points.size());
+  FinishSpanCoverage(std::move(points), reference, &out);
+  return out;
+}
+
+SpanCoverage CalcSpanCoverage(const std::vector<double>& fn_n,
+                              const std::vector<double>& v_mm_s,
+                              const SpanRect& reference,
+                              const std::vector<int>& stroke,
+                              IdentificationMemo* memo) {
+  if (stroke.empty()) return CalcSpanCoverage(fn_n, v_mm_s, reference);
+  CheckSpanArguments(fn_n, v_mm_s, reference);
+  if (stroke.size() != fn_n.size())
+    throw std::invalid_argument("stroke and fn_n differ in length (" +
+                                std::to_string(stroke.size()) + " vs " +
+                                std::to_string(fn_n.size()) + ")");
+  SpanCoverage out;
+  out.missing = reference;
+  // The hull of the clamped points is the hull of the strokes' clamped
+  // hulls (as in CalcMaterialHullCoverage), and so is their extent; a
+  // stroke's clamped hull depends on its points and the reference only,
+  // so a refit looks up its older strokes' hulls in the memo.
+  std::map<int, std::vector<Point>> by;
+  for (std::size_t i = 0; i < fn_n.size(); ++i) {
+    if (!(std::isfinite(fn_n[i]) && std::isfinite(v_mm_s[i]))) continue;
+    ++out.samples;
+    by[stroke[i]].emplace_back(fn_n[i], v_mm_s[i]);
+  }
+  std::vector<Point> vertices;
+  for (auto& entry : by) {
+    // A named reference, not a structured binding (C++17 lambdas cannot
+    // capture bindings; the fuzz build uses clang).
+    std::vector<Point>& points = entry.second;
+    const std::shared_ptr<const MemoHull> hull = Memoized(
+        memo ? &memo->stroke_hulls : nullptr,
+        points.size(),
+        [&points, &reference] {
+          MemoKeyBuilder h(0x5370616e48756c6cULL);  // "SpanHull"
+          h.Add(reference.fn_min_n)
+              .Add(reference.fn_max_n)
+              .Add(reference.v_min_mm_s)
+              .Add(reference.v_max_mm_s);
+          h.Add(static_cast<std::uint64_t>(points.size()));
+          for (const Point& q : points) h.Add(q.first).Add(q.second);
+          return h.Key();
+        },
+        [&points, &reference] {
+          for (Point& q : points) q = ClampInto(reference, q.first, q.second);
+          MemoHull computed;
+          computed.vertices = CalcConvexHull(std::move(points));
+          computed.area = PolygonArea(computed.vertices);
+          return computed;
+        });
+    vertices.insert(
+        vertices.end(), hull->vertices.begin(), hull->vertices.end());
+  }
+  FinishSpanCoverage(std::move(vertices), reference, &out);
   return out;
 }
 

@@ -10,6 +10,8 @@
 
 #include <gtest/gtest.h>
 
+#include "frictiond/estimators/identification_memo.h"
+
 namespace frictiond {
 namespace {
 
@@ -180,6 +182,81 @@ TEST(SpanCoverage, NothingCoveredMeansWholePlanMissing) {
   EXPECT_EQ(c.samples, 0);
   EXPECT_DOUBLE_EQ(c.missing.fn_min_n, kPlan.fn_min_n);
   EXPECT_DOUBLE_EQ(c.missing.v_max_mm_s, kPlan.v_max_mm_s);
+}
+
+// The per-stroke form (IdentifyMaterial's, with the refit's memo) against
+// the plain form on data wider than the strokes a robot makes: points far
+// outside the plan, non-finite ones, strokes on one line, single points.
+// The memo is reused across calls whose strokes overlap
+// (a bounded refit), so later calls are mostly memo hits.
+TEST(SpanCoverage, PerStrokeFormWithMemoEqualsThePlainForm) {
+  std::mt19937_64 rng(20261128);
+  std::uniform_real_distribution<double> u(-1.0, 6.0), w(-20.0, 120.0);
+  struct Stroke {
+    std::vector<double> fn, v;
+  };
+  auto make_stroke = [&](int kind) {
+    Stroke s;
+    const int n = kind == 0 ? 1 : 1 + static_cast<int>(rng() % 300);
+    const double c = u(rng), d = w(rng);
+    for (int i = 0; i < n; ++i) {
+      double fn = u(rng), v = w(rng);
+      if (kind == 1) fn = c;            // constant load: a vertical line
+      if (kind == 2) v = d;             // constant speed
+      if (kind == 3) v = d + 3.0 * fn;  // a sloped line
+      if (kind == 4 && i % 17 == 5) fn = NAN;
+      if (kind == 4 && i % 29 == 7) v = INFINITY;
+      s.fn.push_back(fn);
+      s.v.push_back(v);
+    }
+    return s;
+  };
+  IdentificationMemo memo;
+  std::vector<Stroke> window;  // the refit's strokes, oldest first
+  int hits_expected = 0;
+  for (int call = 0; call < 200; ++call) {
+    window.push_back(make_stroke(static_cast<int>(rng() % 6)));
+    if (window.size() > 12) window.erase(window.begin());
+    std::vector<double> fn, v;
+    std::vector<int> id;
+    for (std::size_t k = 0; k < window.size(); ++k) {
+      // Ids as a refit numbers them: the position in the window.
+      for (std::size_t i = 0; i < window[k].fn.size(); ++i) {
+        fn.push_back(window[k].fn[i]);
+        v.push_back(window[k].v[i]);
+        id.push_back(static_cast<int>(k));
+      }
+    }
+    const SpanRect plan =
+        call % 5 == 0 ? SpanRect{0.0, 5.0, 0.0, 100.0} : kPlan;
+    const SpanCoverage plain = CalcSpanCoverage(fn, v, plan);
+    const SpanCoverage per = CalcSpanCoverage(fn, v, plan, id, &memo);
+    const SpanCoverage no_memo = CalcSpanCoverage(fn, v, plan, id, nullptr);
+    for (const SpanCoverage* c : {&per, &no_memo}) {
+      EXPECT_NEAR(c->span_pct, plain.span_pct, 1e-9 * (1.0 + plain.span_pct))
+          << call;
+      EXPECT_EQ(c->samples, plain.samples) << call;
+      EXPECT_EQ(c->covered.fn_min_n, plain.covered.fn_min_n) << call;
+      EXPECT_EQ(c->covered.fn_max_n, plain.covered.fn_max_n) << call;
+      EXPECT_EQ(c->covered.v_min_mm_s, plain.covered.v_min_mm_s) << call;
+      EXPECT_EQ(c->covered.v_max_mm_s, plain.covered.v_max_mm_s) << call;
+      EXPECT_EQ(c->missing.fn_min_n, plain.missing.fn_min_n) << call;
+      EXPECT_EQ(c->missing.fn_max_n, plain.missing.fn_max_n) << call;
+      EXPECT_EQ(c->missing.v_min_mm_s, plain.missing.v_min_mm_s) << call;
+      EXPECT_EQ(c->missing.v_max_mm_s, plain.missing.v_max_mm_s) << call;
+    }
+    if (call > 0 && call % 5 != 0 && (call - 1) % 5 != 0)
+      hits_expected += static_cast<int>(window.size()) - 1;
+    memo.Sweep();
+  }
+  // The older strokes came from the memo (same points, same plan).
+  EXPECT_GE(memo.stroke_hulls.hits(),
+            static_cast<std::uint64_t>(hits_expected));
+  // Empty ids: the plain form; mismatched ids: refused.
+  EXPECT_EQ(
+      CalcSpanCoverage({1.0, 2.0}, {20.0, 70.0}, kPlan, {}, &memo).samples, 2);
+  EXPECT_THROW(CalcSpanCoverage({1.0, 2.0}, {20.0, 70.0}, kPlan, {0}, &memo),
+               std::invalid_argument);
 }
 
 TEST(SpanCoverage, RejectsBadInput) {

@@ -193,7 +193,8 @@ struct MemoHull {
 struct IdentificationMemo {
   /// RecognizeLuGreStrokes' strokes of one run (its steps 3-5).
   MemoTable<std::vector<RecognizedStroke>> lugre_runs;
-  /// CalcMaterialHullCoverage's hull of one stroke's slipping samples.
+  /// A stroke's hull of its slipping samples: CalcMaterialHullCoverage's, and
+  /// CalcSpanCoverage's clamped into its reference (keyed apart).
   MemoTable<MemoHull> stroke_hulls;
 
   IdentificationMemo() = default;
