@@ -78,17 +78,27 @@ TEST(MedianFilter, MedianAboveEqualsFilterThenThreshold) {
 
 // The median sampling interval (upper median of the positive steps) for
 // quantised intervals (the counted guess), continuous ones (the selection
-// over all), gaps, repeated and backward time stamps.
+// over all), times computed as i / rate (steps that differ in their last
+// bits), steps whose pattern repeats with the sample's stride (a sample
+// that misses the median), gaps, repeated and backward time stamps.
 TEST(MedianFilter, MedianDtIsTheUpperMedianOfPositiveSteps) {
   std::mt19937 rng(45);
   std::uniform_real_distribution<double> u(0.0, 1.0);
-  for (int kind = 0; kind < 3; ++kind) {
+  for (int kind = 0; kind < 5; ++kind) {
     for (int n : {1, 2, 3, 500, 5000, 40001}) {
       std::vector<double> t(n);
       double now = 0.0;
-      for (double& s : t) {
+      const int stride = std::max(1, (n - 1) / 256);
+      for (int i = 0; i < n; ++i) {
+        double& s = t[i];
         const double r = u(rng);
-        if (kind == 0) {
+        if (kind == 3) {
+          s = i / 250.0 + 1000.0;  // a clock far from zero
+          continue;
+        }
+        if (kind == 4) {
+          now += i % stride == 1 ? 0.004 : 0.004 + 1e-4 * r;
+        } else if (kind == 0) {
           now += r < 0.01 ? 2.5 : 0.005;  // 200 Hz with rests
         } else if (kind == 1) {
           now += 0.004 + 0.002 * r;  // jittered clock
