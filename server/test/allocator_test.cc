@@ -8,6 +8,16 @@
 
 #include <gtest/gtest.h>
 
+// Under AddressSanitizer malloc is the sanitizer's and mallinfo2 reads
+// zeros: the heap figures are not checked there.
+#if defined(__SANITIZE_ADDRESS__)
+#define FRICTIOND_TEST_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define FRICTIOND_TEST_ASAN 1
+#endif
+#endif
+
 namespace frictiond {
 namespace {
 
@@ -18,6 +28,9 @@ TEST(AllocatorTest, ReportsGlibcWhenJemallocIsNotLinked) {
 }
 
 TEST(AllocatorTest, HeapInUseCountsLiveBlocks) {
+#ifdef FRICTIOND_TEST_ASAN
+  GTEST_SKIP() << "AddressSanitizer's malloc: mallinfo2 reads zeros";
+#endif
   const HeapStats before = ReadHeapStats();
   // 64 blocks of 64 KiB: below the tuned mmap threshold or above glibc's
   // default, counted either way (uordblks or hblkhd).
@@ -40,7 +53,11 @@ TEST(AllocatorTest, TuneAndReleaseAreSafeAtAnyTime) {
   blocks.resize(8);
   ReleaseFreeHeap();
   const HeapStats s = ReadHeapStats();
+#ifndef FRICTIOND_TEST_ASAN
   EXPECT_GT(s.in_use, 8u << 20);
+#else
+  (void)s;
+#endif
 }
 
 }  // namespace
