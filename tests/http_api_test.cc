@@ -8,22 +8,13 @@
 #include <vector>
 
 #include <gtest/gtest.h>
-
-// Under AddressSanitizer malloc is the sanitizer's and mallinfo2 reads
-// zeros: the heap figures are not checked there.
-#if defined(__SANITIZE_ADDRESS__)
-#define FRICTIOND_TEST_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define FRICTIOND_TEST_ASAN 1
-#endif
-#endif
 #include <httplib.h>
 #include <nlohmann/json.hpp>
 #include <signal.h>
 
 #include "frictiond/estimators/stroke_csv.h"
 #include "frictiond/testing/daemon_process.h"
+#include "frictiond/testing/sanitizers.h"
 #include "frictiond/testing/stroke_simulator.h"
 
 namespace frictiond {

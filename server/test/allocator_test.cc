@@ -8,15 +8,7 @@
 
 #include <gtest/gtest.h>
 
-// Under AddressSanitizer malloc is the sanitizer's and mallinfo2 reads
-// zeros: the heap figures are not checked there.
-#if defined(__SANITIZE_ADDRESS__)
-#define FRICTIOND_TEST_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define FRICTIOND_TEST_ASAN 1
-#endif
-#endif
+#include "frictiond/testing/sanitizers.h"
 
 namespace frictiond {
 namespace {
