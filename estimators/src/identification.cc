@@ -50,8 +50,11 @@ void FitConditionalCoverageAndLuGre(
   for (std::size_t i = 0; i < n; ++i) ratio[i] = data.ft_n[i] / data.fn_n[i];
   // A family that cannot be identified is a status, never an exception.
   try {
-    out->conditional = FitConditionalSlipLikelihood(
-        data.fn_n, ratio, data.slip, options.conditional);
+    out->conditional = FitConditionalSlipLikelihood(data.fn_n,
+                                                    ratio,
+                                                    data.slip,
+                                                    options.conditional,
+                                                    options.conditional_start);
   } catch (const std::exception& e) {
     out->conditional = ConditionalSlipLikelihood{};
     out->conditional.why = std::string("identification failed: ") + e.what();

@@ -98,7 +98,8 @@ ConditionalSlipLikelihood FitConditionalSlipLikelihood(
     const std::vector<double>& fn_n,
     const std::vector<double>& ratio,
     const std::vector<int>& slip,
-    const ConditionalSlipOptions& options) {
+    const ConditionalSlipOptions& options,
+    const ConditionalSlipLikelihood* start) {
   std::string why;
   if (!options.IsValid(&why)) throw std::invalid_argument(why);
   if (fn_n.size() != ratio.size() || slip.size() != ratio.size()) {
@@ -270,6 +271,21 @@ ConditionalSlipLikelihood FitConditionalSlipLikelihood(
     windows[w].slipping = static_cast<int>(
         std::count(s.begin() + offset[w], s.begin() + offset[w + 1], 1));
   }
+  // The start's window with this centre (the centres lie on one grid of
+  // step_n, so a refit's windows meet the previous fit's), when it was fitted.
+  auto start_of = [start, step](double centre) -> const SlipLikelihoodFit* {
+    if (start == nullptr || !(start->step_n == step)) return nullptr;
+    const auto& sw = start->windows;
+    auto it = std::lower_bound(
+        sw.begin(),
+        sw.end(),
+        centre - 0.5 * step,
+        [](const SlipWindowFit& a, double c) { return a.fn_center_n < c; });
+    if (it == sw.end() || !(std::fabs(it->fn_center_n - centre) < 0.5 * step) ||
+        !it->fit.valid)
+      return nullptr;
+    return &it->fit;
+  };
   for (int w = 0; w < n_windows; ++w) {
     SlipWindowFit& win = windows[w];
     win.samples = static_cast<int>(offset[w + 1] - offset[w]);
@@ -287,7 +303,8 @@ ConditionalSlipLikelihood FitConditionalSlipLikelihood(
                                   s.data() + offset[w],
                                   static_cast<std::size_t>(win.samples),
                                   options.never_level,
-                                  options.always_level);
+                                  options.always_level,
+                                  start_of(win.fn_center_n));
     }
     if (win.fit.valid) {
       out.knot_fn_n.push_back(win.fn_center_n);

@@ -254,6 +254,106 @@ TEST(ConditionalSlipLikelihood, WindowMembershipIsExact) {
   }
 }
 
+// A refit's start (the previous refit's fit, as the daemon passes it)
+// changes no answer beyond the Newton tolerance. The generator is wider
+// than eq. (2)'s assumptions: slip drawn from a steeper or flatter sigmoid
+// per seed, a share of labels flipped at random (no sigmoid at all), Fn
+// bunched at a few loads, and nearly separable windows (c1 = 400).
+TEST(ConditionalSlipLikelihood, AStartChangesNoAnswer) {
+  int windows = 0, separable_seeds = 0;
+  double worst_c1 = 0, worst_c2 = 0;
+  for (std::uint64_t seed = 0; seed < 40; ++seed) {
+    std::mt19937_64 rng(1000 + seed);
+    std::uniform_real_distribution<double> u(0, 1);
+    const double steep = seed % 5 == 4 ? 400.0 : 4.0 + 30.0 * u(rng);
+    separable_seeds += steep > 100;
+    const double flip = seed % 3 == 0 ? 0.1 : 0.0;
+    const bool bunched = seed % 2 == 1;
+    // Seventeen uploads of 250 samples; refits see uploads [k, k + 16].
+    std::vector<Labelled> uploads(20);
+    for (Labelled& up : uploads) {
+      for (int i = 0; i < 250; ++i) {
+        const double fn = bunched ? 1.0 + std::floor(4 * u(rng)) + 0.1 * u(rng)
+                                  : 0.5 + 4.0 * u(rng);
+        const double r = 0.2 + 1.4 * u(rng);
+        const double c2 = TrueC2(fn);
+        bool s = u(rng) < 1.0 / (1.0 + std::exp(-steep * (r - c2)));
+        if (u(rng) < flip) s = !s;
+        up.fn.push_back(fn);
+        up.ratio.push_back(r);
+        up.slip.push_back(s);
+      }
+    }
+    ConditionalSlipLikelihood previous;
+    for (int k = 0; k + 17 <= 20; ++k) {
+      Labelled d;
+      for (int j = k; j < k + 17; ++j) {
+        d.fn.insert(d.fn.end(), uploads[j].fn.begin(), uploads[j].fn.end());
+        d.ratio.insert(
+            d.ratio.end(), uploads[j].ratio.begin(), uploads[j].ratio.end());
+        d.slip.insert(
+            d.slip.end(), uploads[j].slip.begin(), uploads[j].slip.end());
+      }
+      const ConditionalSlipLikelihood cold =
+          FitConditionalSlipLikelihood(d.fn, d.ratio, d.slip);
+      const ConditionalSlipLikelihood warm =
+          FitConditionalSlipLikelihood(d.fn, d.ratio, d.slip, {}, &previous);
+      ASSERT_EQ(cold.windows.size(), warm.windows.size());
+      for (std::size_t w = 0; w < cold.windows.size(); ++w) {
+        const SlipLikelihoodFit& a = cold.windows[w].fit;
+        const SlipLikelihoodFit& b = warm.windows[w].fit;
+        ASSERT_EQ(a.valid, b.valid) << "seed " << seed << " window " << w;
+        if (!a.valid) continue;
+        ++windows;
+        // c2 against its standard error: what the answer can be trusted to.
+        worst_c1 = std::max(worst_c1, std::fabs(a.c1 - b.c1) / a.c1);
+        worst_c2 =
+            std::max(worst_c2, std::fabs(a.c2 - b.c2) / std::sqrt(a.P_c(1, 1)));
+      }
+      EXPECT_EQ(cold.knot_fn_n, warm.knot_fn_n);
+      previous = cold.valid ? warm : previous;
+    }
+  }
+  // Measured: 2,000 windows, at most 4e-10 (c1) and 2e-9 (c2).
+  EXPECT_GT(windows, 1000);
+  EXPECT_GT(separable_seeds, 0);
+  EXPECT_LT(worst_c1, 1e-7) << windows << " windows";
+  EXPECT_LT(worst_c2, 1e-7) << windows << " windows";
+}
+
+// A start the steps cannot use (another grid, far-off values, nonsense) is
+// dropped: the answer is the cold start's, bit for bit.
+TEST(ConditionalSlipLikelihood, AnUnusableStartIsDropped) {
+  const Labelled d = Simulate(6000, 23);
+  const ConditionalSlipLikelihood cold =
+      FitConditionalSlipLikelihood(d.fn, d.ratio, d.slip);
+  ASSERT_TRUE(cold.valid) << cold.why;
+  ConditionalSlipOptions other_grid;
+  other_grid.step_n = 0.25;
+  const ConditionalSlipLikelihood grid =
+      FitConditionalSlipLikelihood(d.fn, d.ratio, d.slip, other_grid);
+  ConditionalSlipLikelihood nonsense = cold;
+  for (SlipWindowFit& w : nonsense.windows) {
+    w.fit.c1 = 1e300;
+    w.fit.c2 = -1e300;
+  }
+  ConditionalSlipLikelihood far = cold;
+  for (SlipWindowFit& w : far.windows) {
+    w.fit.c1 = 1e4;  // a step, not a sigmoid
+    w.fit.c2 = 40.0;
+  }
+  const ConditionalSlipLikelihood* starts[] = {&grid, &nonsense, &far};
+  for (const ConditionalSlipLikelihood* start : starts) {
+    const ConditionalSlipLikelihood warm =
+        FitConditionalSlipLikelihood(d.fn, d.ratio, d.slip, {}, start);
+    ASSERT_EQ(cold.windows.size(), warm.windows.size());
+    for (std::size_t w = 0; w < cold.windows.size(); ++w) {
+      EXPECT_EQ(cold.windows[w].fit.c1, warm.windows[w].fit.c1) << w;
+      EXPECT_EQ(cold.windows[w].fit.c2, warm.windows[w].fit.c2) << w;
+    }
+  }
+}
+
 TEST(BinnedSlipRatio, CountsPerBin) {
   const std::vector<double> r = {0.05, 0.12, 0.18, 0.31, NAN};
   const std::vector<int> s = {0, 1, 0, 1, 1};

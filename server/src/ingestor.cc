@@ -84,6 +84,8 @@ struct Ingestor::Pair {
   std::size_t stride = 1;
   // Per-stroke results of the pair's refits (thread-safe on its own).
   IdentificationMemo memo;
+  // The last refit's eq. (2) fit: the next one's starting point.
+  ConditionalSlipLikelihood conditional_start;
 };
 
 Ingestor::PairLock::PairLock(std::shared_ptr<Pair> pair,
@@ -121,6 +123,10 @@ void Ingestor::Shed(Pair& pair) {
 
 IdentificationMemo& Ingestor::PairLock::memo() const { return pair_->memo; }
 
+ConditionalSlipLikelihood& Ingestor::PairLock::conditional_start() const {
+  return pair_->conditional_start;
+}
+
 void Ingestor::Drop(Pair& pair) {
   Shed(pair);
   pair.stride = 1;
@@ -129,6 +135,7 @@ void Ingestor::Drop(Pair& pair) {
   pair.samples_stored = 0;
   pair.known_through = 0;
   pair.loaded = false;
+  pair.conditional_start = ConditionalSlipLikelihood{};
 }
 
 bool Ingestor::Cache(Pair& pair, std::int64_t id, const std::string& csv) {

@@ -540,7 +540,8 @@ IngestResult FrictionLibrary::IngestStrokes(const std::string& material,
                                 previous.get(),
                                 labelling,
                                 slot,
-                                &pair.memo());
+                                &pair.memo(),
+                                &pair.conditional_start());
   if (fit.status != FitStatus::kOk && fit.status != FitStatus::kPartial) {
     throw RequestError(
         StatusCode::kFailedPrecondition,
@@ -612,7 +613,8 @@ FrictionLibrary::ModelSetFit FrictionLibrary::FitModelSet(
     const CachedModel* previous,
     const SlipLabelOptions& labelling,
     const FitWorkers::InFlight& slot,
-    IdentificationMemo* memo) const {
+    IdentificationMemo* memo,
+    ConditionalSlipLikelihood* conditional_start) const {
   StochasticFitOptions fit_options;
   if (previous && previous->set.stochastic) {
     // Keep an extended model's terms (product columns included) and its eps
@@ -649,6 +651,8 @@ FrictionLibrary::ModelSetFit FrictionLibrary::FitModelSet(
   MaterialIdentificationOptions id_options;
   id_options.fit = fit_options;
   id_options.memo = memo;  // the pair's: its older strokes' steps kept
+  if (conditional_start && conditional_start->valid)
+    id_options.conditional_start = conditional_start;
   if (slot.split()) {
     id_options.post = [this](std::function<void()> task) {
       fit_workers_->PostShare(std::move(task));
@@ -692,6 +696,7 @@ FrictionLibrary::ModelSetFit FrictionLibrary::FitModelSet(
   if (id.conditional.valid) {
     out.set.other[kConditionalSlipFamilyKey] =
         ConditionalSlipToJson(id.conditional);
+    if (conditional_start) *conditional_start = std::move(id.conditional);
   } else {
     add_note(kConditionalSlipFamilyKey, id.conditional.why);
   }

@@ -9,8 +9,10 @@
 
 #include <gtest/gtest.h>
 
+#include "frictiond/estimators/slip_likelihood.h"
 #include "frictiond/estimators/stochastic_model.h"
 #include "frictiond/estimators/stroke_csv.h"
+#include "frictiond/proto/slip_likelihood_json.h"
 #include "frictiond/server/library.h"
 #include "frictiond/testing/daemon_process.h"
 #include "frictiond/testing/stroke_simulator.h"
@@ -148,6 +150,25 @@ TEST_F(IngestorTest, CachedRefitEqualsARefitFromTheStore) {
   EXPECT_EQ(r.model->set.stochastic->samples_total, static_cast<int>(total));
   ExpectSameFit(*r.model->set.stochastic,
                 RefitFromStore(*lib, "felt", SlipLabelOptions{}));
+  // Eq. (2), whose Newton steps started from the previous refit's fit
+  // (Ingestor::PairLock::conditional_start), equals a cold fit of the
+  // stored strokes to the steps' tolerance.
+  {
+    const StrokeData d =
+        lib->LoadStrokes("felt", "default", SlipLabelOptions{});
+    std::vector<double> ratio(d.size());
+    for (std::size_t i = 0; i < d.size(); ++i) ratio[i] = d.ft_n[i] / d.fn_n[i];
+    const ConditionalSlipLikelihood cold =
+        FitConditionalSlipLikelihood(d.fn_n, ratio, d.slip);
+    const ConditionalSlipLikelihood served = ConditionalSlipFromJson(
+        r.model->set.other.at(kConditionalSlipFamilyKey));
+    ASSERT_TRUE(cold.valid) << cold.why;
+    ASSERT_EQ(served.knot_fn_n, cold.knot_fn_n);
+    for (std::size_t k = 0; k < cold.knot_c1.size(); ++k) {
+      EXPECT_NEAR(served.knot_c1[k], cold.knot_c1[k], 1e-7 * cold.knot_c1[k]);
+      EXPECT_NEAR(served.knot_c2[k], cold.knot_c2[k], 1e-7);
+    }
+  }
   // The returned model is the committed version, as a store read gives it.
   EXPECT_EQ(r.model->json_text,
             lib->FindModelVersion("felt", "default", r.version)->json_text);

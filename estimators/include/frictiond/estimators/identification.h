@@ -60,6 +60,11 @@ struct MaterialIdentificationOptions {
   /// without it; the call sweeps it at its end (it keeps what this call
   /// used). One call at a time per memo.
   IdentificationMemo* memo = nullptr;
+  /// Optional: an earlier eq. (2) fit of this material (the daemon passes
+  /// the pair's previous refit's). Each Fn window's Newton steps start from
+  /// the start's window at the same centre (FitConditionalSlipLikelihood),
+  /// which converges in fewer passes to the same optimum.
+  const ConditionalSlipLikelihood* conditional_start = nullptr;
 };
 
 /// Every family identified from one material's strokes. A family that

@@ -104,13 +104,18 @@ struct ConditionalSlipLikelihood {
 };
 
 /// Fits eq. (2). `fn_n`, `ratio` (Ft/Fn) and `slip` (0/1) are per sample and
-/// must have equal sizes; non-finite samples are skipped.
+/// must have equal sizes; non-finite samples are skipped. `start`,
+/// optional: an earlier fit of similar data (the daemon passes a pair's
+/// previous refit's); each window whose centre matches one of its fitted
+/// windows (same step_n) starts its Newton steps there (FitSlipLikelihood:
+/// the same optimum in fewer passes).
 /// @throws std::invalid_argument for invalid options or size mismatch.
 ConditionalSlipLikelihood FitConditionalSlipLikelihood(
     const std::vector<double>& fn_n,
     const std::vector<double>& ratio,
     const std::vector<int>& slip,
-    const ConditionalSlipOptions& options = {});
+    const ConditionalSlipOptions& options = {},
+    const ConditionalSlipLikelihood* start = nullptr);
 
 /// Value of eq. (2) at one point.
 struct ConditionalSlipValue {

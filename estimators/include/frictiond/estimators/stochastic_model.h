@@ -184,11 +184,17 @@ SlipLikelihoodFit FitSlipLikelihood(const std::vector<double>& ratio,
                                     double never_level = 0.01,
                                     double always_level = 0.99);
 /// The same on n pairs in plain arrays (slip: 0 = stick, else slip).
+/// `start`, optional: a fit of similar data (e.g. the same pairs before the
+/// latest upload) whose c1, c2 start the Newton steps. The answer is the
+/// same optimum to the steps' tolerance (differences of order 1e-10
+/// relative); a start from which the steps do not converge quickly is
+/// dropped for the usual cold start.
 SlipLikelihoodFit FitSlipLikelihood(const double* ratio,
                                     const int* slip,
                                     std::size_t n,
                                     double never_level = 0.01,
-                                    double always_level = 0.99);
+                                    double always_level = 0.99,
+                                    const SlipLikelihoodFit* start = nullptr);
 
 /// Prediction of mu at an operating point.
 struct MuPrediction {

@@ -41,6 +41,7 @@
 
 #include "frictiond/estimators/identification_memo.h"
 #include "frictiond/estimators/preprocessing.h"
+#include "frictiond/estimators/slip_likelihood.h"
 #include "frictiond/estimators/stroke_data.h"
 #include "frictiond/storage/store.h"
 
@@ -121,6 +122,11 @@ class Ingestor {
     /// refits' per-stroke results, kept while the pair's uploads are
     /// cached (cleared when they are shed).
     IdentificationMemo& memo() const;
+    /// The pair's last refit's eq. (2) fit (not valid before the first):
+    /// the next refit's Newton steps start from it
+    /// (MaterialIdentificationOptions::conditional_start). Only a start:
+    /// the answer does not depend on it.
+    ConditionalSlipLikelihood& conditional_start() const;
 
    private:
     friend class Ingestor;

@@ -292,7 +292,9 @@ class FrictionLibrary {
   /// a second one, and the previous version's other families carried over.
   /// Reads only its arguments and fitters_ (no store, no cache); `memo` is
   /// the pair's (Ingestor::PairLock::memo()): the older strokes' per-stroke
-  /// steps are looked up there, with the same results.
+  /// steps are looked up there, with the same results. `conditional_start`
+  /// (the pair's, Ingestor::PairLock::conditional_start()) starts eq. (2)'s
+  /// Newton steps and is replaced by this refit's eq. (2) when it is valid.
   ModelSetFit FitModelSet(const std::string& material,
                           const std::string& fingertip,
                           const StrokeData& strokes,
@@ -300,7 +302,8 @@ class FrictionLibrary {
                           const CachedModel* previous,
                           const SlipLabelOptions& labelling,
                           const FitWorkers::InFlight& slot,
-                          IdentificationMemo* memo) const;
+                          IdentificationMemo* memo,
+                          ConditionalSlipLikelihood* conditional_start) const;
   /// Caches a version just committed (made from what was committed).
   std::shared_ptr<const CachedModel> Publish(const nlohmann::json& doc,
                                              const ModelRecord& record);
