@@ -26,13 +26,27 @@ double Cross(const Point& o, const Point& a, const Point& b) {
          (a.second - o.second) * (b.first - o.first);
 }
 
+// An edge of a convex polygon as origin and direction.
+struct Edge {
+  double x, y, dx, dy;
+};
+
+// Strictly left of every edge: strictly inside the polygon.
+bool StrictlyInside(const std::vector<Edge>& edges, const Point& q) {
+  for (const Edge& g : edges) {
+    // Cross(a, b, q) > 0, written out.
+    if (!(g.dx * (q.second - g.y) - g.dy * (q.first - g.x) > 0)) return false;
+  }
+  return !edges.empty();
+}
+
 // Akl-Toussaint: the points extreme in x, y, x + y and x - y are on the
 // hull; in counter-clockwise order they span a convex polygon, and a point
-// strictly inside it is no hull vertex. Dropping those before the sort
-// leaves the hull unchanged and, for spread-out data, few points to sort.
-void DropInteriorPoints(std::vector<Point>* points) {
-  std::vector<Point>& p = *points;
-  if (p.size() < 64) return;
+// strictly inside it is no hull vertex. Returns that polygon's edges (none
+// below 64 points, where the test costs more than it saves, or when the
+// extremes span no area).
+std::vector<Edge> InteriorOctagon(const std::vector<Point>& p) {
+  if (p.size() < 64) return {};
   // Directions in counter-clockwise order: min x, min x+y, min y,
   // max x-y, max x, max x+y, max y, min x-y (as maxima of 8 keys).
   auto keys = [](const Point& q, double* k) {
@@ -64,11 +78,7 @@ void DropInteriorPoints(std::vector<Point>* points) {
     if (poly.empty() || poly.back() != p[e[d]]) poly.push_back(p[e[d]]);
   }
   while (poly.size() > 1 && poly.back() == poly.front()) poly.pop_back();
-  if (poly.size() < 3) return;
-  // Edges as origin and direction: q is strictly left of every edge.
-  struct Edge {
-    double x, y, dx, dy;
-  };
+  if (poly.size() < 3) return {};
   std::vector<Edge> edges;
   for (std::size_t j = 0; j < poly.size(); ++j) {
     const Point& a = poly[j];
@@ -76,23 +86,28 @@ void DropInteriorPoints(std::vector<Point>* points) {
     edges.push_back(
         {a.first, a.second, b.first - a.first, b.second - a.second});
   }
-  auto inside = [&edges](const Point& q) {
-    for (const Edge& g : edges) {
-      // Cross(a, b, q) > 0, written out.
-      if (!(g.dx * (q.second - g.y) - g.dy * (q.first - g.x) > 0)) return false;
-    }
-    return true;
-  };
-  p.erase(std::remove_if(p.begin(), p.end(), inside), p.end());
+  return edges;
 }
 
-}  // namespace
+// Drops the points strictly inside InteriorOctagon (no hull vertices):
+// the hull is unchanged and, for spread-out data, few points are left to
+// sort. The others keep their order.
+void DropInteriorPoints(std::vector<Point>* points) {
+  const std::vector<Edge> edges = InteriorOctagon(*points);
+  if (edges.empty()) return;
+  points->erase(std::remove_if(points->begin(),
+                               points->end(),
+                               [&edges](const Point& q) {
+                                 return StrictlyInside(edges, q);
+                               }),
+                points->end());
+}
 
-std::vector<std::pair<double, double>> CalcConvexHull(
-    std::vector<std::pair<double, double>> p) {
+// All of `p` on one vertical or horizontal line (e.g. a constant load
+// clamped to the reference span): true, and the hull (the segment between
+// the ends, or the one point) in *hull.
+bool AxisSegmentHull(const std::vector<Point>& p, std::vector<Point>* hull) {
   if (!p.empty()) {
-    // All on one vertical or horizontal line (e.g. a constant load clamped
-    // to the reference span): the hull is the segment between the ends.
     bool same_x = true, same_y = true;
     double y_lo = p[0].second, y_hi = y_lo, x_lo = p[0].first, x_hi = x_lo;
     for (const Point& q : p) {
@@ -108,12 +123,20 @@ std::vector<std::pair<double, double>> CalcConvexHull(
           same_x ? Point{p[0].first, y_lo} : Point{x_lo, p[0].second};
       const Point hi =
           same_x ? Point{p[0].first, y_hi} : Point{x_hi, p[0].second};
-      if (lo == hi) return {lo};
-      return {lo, hi};
+      if (lo == hi) {
+        *hull = {lo};
+      } else {
+        *hull = {lo, hi};
+      }
+      return true;
     }
   }
-  DropInteriorPoints(&p);
-  std::sort(p.begin(), p.end());
+  return false;
+}
+
+// Andrew's monotone chain on points in lexicographic order (duplicates
+// allowed): CalcConvexHull's answer.
+std::vector<Point> ChainHull(std::vector<Point> p) {
   p.erase(std::unique(p.begin(), p.end()), p.end());
   const std::size_t n = p.size();
   if (n < 3) return p;
@@ -130,6 +153,17 @@ std::vector<std::pair<double, double>> CalcConvexHull(
   }
   hull.resize(k - 1);
   return hull;
+}
+
+}  // namespace
+
+std::vector<std::pair<double, double>> CalcConvexHull(
+    std::vector<std::pair<double, double>> p) {
+  std::vector<Point> segment;
+  if (AxisSegmentHull(p, &segment)) return segment;
+  DropInteriorPoints(&p);
+  std::sort(p.begin(), p.end());
+  return ChainHull(std::move(p));
 }
 
 namespace {
@@ -162,12 +196,141 @@ Point ClampInto(const SpanRect& r, double fn, double v) {
           std::min(std::max(v, r.v_min_mm_s), r.v_max_mm_s)};
 }
 
+// The hull of the union of convex polygons given by their vertices in
+// lexicographic order (MemoHull::vertices): the strict vertices of the hull
+// of a union are vertices of the parts' hulls, so it is the hull of the
+// parts' vertices, and merging the sorted lists replaces the sort (a
+// stroke's slipping samples often trace a convex arc, every one a vertex).
+// Equal to CalcConvexHull of the concatenated vertices.
+// `a` holds the parts' vertex lists one after the other, `ends` the end of
+// each.
+std::vector<Point> UnionHull(std::vector<Point> a,
+                             std::vector<std::size_t> ends) {
+  std::vector<Point> segment;
+  if (AxisSegmentHull(a, &segment)) return segment;
+  // Drop the points inside the octagon of the extremes of all (most of
+  // the parts' vertices, for strokes spread over the plane); each run stays
+  // sorted.
+  const std::vector<Edge> edges = InteriorOctagon(a);
+  if (!edges.empty()) {
+    std::size_t kept = 0, begin = 0;
+    for (std::size_t& end : ends) {
+      for (std::size_t i = begin; i < end; ++i) {
+        if (!StrictlyInside(edges, a[i])) a[kept++] = a[i];
+      }
+      begin = end;
+      end = kept;
+    }
+    a.resize(kept);
+  }
+  // Bottom-up merge of neighbouring runs.
+  std::vector<Point> b(a.size());
+  while (ends.size() > 1) {
+    std::vector<std::size_t> merged;
+    std::size_t begin = 0;
+    for (std::size_t r = 0; r < ends.size(); r += 2) {
+      const std::size_t mid = ends[r];
+      const std::size_t end = r + 1 < ends.size() ? ends[r + 1] : mid;
+      std::merge(a.begin() + begin,
+                 a.begin() + mid,
+                 a.begin() + mid,
+                 a.begin() + end,
+                 b.begin() + begin);
+      merged.push_back(end);
+      begin = end;
+    }
+    a.swap(b);
+    ends.swap(merged);
+  }
+  return ChainHull(std::move(a));
+}
+
+// The finite samples grouped by stroke id (ascending) and each stroke's
+// hull, looked up in the memo's stroke_hulls when it holds it. With
+// `clamp`, the points are clamped into it first (CalcSpanCoverage's
+// hulls, keyed apart from CalcMaterialHullCoverage's).
+struct StrokeHulls {
+  std::vector<int> ids;
+  std::vector<int> samples;  // per stroke
+  std::vector<std::shared_ptr<const MemoHull>> hulls;
+  int total = 0;  // finite samples
+
+  // Every hull's vertices, one hull after the other; *ends: where each
+  // hull's end.
+  std::vector<Point> Vertices(std::vector<std::size_t>* ends) const {
+    std::vector<Point> all;
+    for (const auto& hull : hulls) {
+      all.insert(all.end(), hull->vertices.begin(), hull->vertices.end());
+      ends->push_back(all.size());
+    }
+    return all;
+  }
+};
+
+StrokeHulls CollectStrokeHulls(const std::vector<double>& fn_n,
+                               const std::vector<double>& v_mm_s,
+                               const std::vector<int>& stroke,
+                               const SpanRect* clamp,
+                               IdentificationMemo* memo) {
+  StrokeHulls out;
+  std::map<int, std::vector<Point>> by;
+  std::vector<Point>* last = nullptr;  // consecutive samples share a stroke
+  int last_id = 0;
+  for (std::size_t i = 0; i < fn_n.size(); ++i) {
+    if (!(std::isfinite(fn_n[i]) && std::isfinite(v_mm_s[i]))) continue;
+    ++out.total;
+    if (last == nullptr || stroke[i] != last_id) {
+      last_id = stroke[i];
+      last = &by[last_id];
+    }
+    last->emplace_back(fn_n[i], v_mm_s[i]);
+  }
+  for (auto& entry : by) {
+    // A named reference, not a structured binding: C++17 lambdas cannot
+    // capture bindings (clang rejects it; the fuzz build uses clang).
+    std::vector<Point>& points = entry.second;
+    out.ids.push_back(entry.first);
+    out.samples.push_back(static_cast<int>(points.size()));
+    // The hull reads the stroke's points only (their order included) and
+    // the clamp rectangle.
+    out.hulls.push_back(Memoized(
+        memo ? &memo->stroke_hulls : nullptr,
+        points.size(),
+        [&points, clamp] {
+          MemoKeyBuilder h(clamp ? 0x5370616e48756c6cULL    // "SpanHull"
+                                 : 0x5374726f48756c6cULL);  // "StroHull"
+          if (clamp) {
+            h.Add(clamp->fn_min_n)
+                .Add(clamp->fn_max_n)
+                .Add(clamp->v_min_mm_s)
+                .Add(clamp->v_max_mm_s);
+          }
+          h.Add(static_cast<std::uint64_t>(points.size()));
+          for (const Point& q : points) h.Add(q.first).Add(q.second);
+          return h.Key();
+        },
+        [&points, clamp] {
+          if (clamp) {
+            for (Point& q : points) q = ClampInto(*clamp, q.first, q.second);
+          }
+          MemoHull computed;
+          computed.vertices = CalcConvexHull(std::move(points));
+          computed.area = PolygonArea(computed.vertices);
+          std::sort(computed.vertices.begin(), computed.vertices.end());
+          return computed;
+        }));
+  }
+  return out;
+}
+
 // The covered extent, span and missing region of `points` (clamped and
 // finite, or the hull vertices of such point sets: both have the same
 // extent and hull), written to `out` (samples and missing set already).
+// With `ends`, `points` are sorted runs of hull vertices (UnionHull).
 void FinishSpanCoverage(std::vector<Point> points,
                         const SpanRect& reference,
-                        SpanCoverage* result) {
+                        SpanCoverage* result,
+                        std::vector<std::size_t>* ends = nullptr) {
   SpanCoverage& out = *result;
   if (points.empty()) return;
   // Covered extent, with two points per step (a single running min/max
@@ -196,7 +359,10 @@ void FinishSpanCoverage(std::vector<Point> points,
       !(c.fn_max_n > c.fn_min_n) || !(c.v_max_mm_s > c.v_min_mm_s);
   out.span_pct =
       flat ? 0.0
-           : std::clamp(100.0 * CalcConvexHullArea(std::move(points)) /
+           : std::clamp(100.0 *
+                            (ends ? PolygonArea(UnionHull(std::move(points),
+                                                          std::move(*ends)))
+                                  : CalcConvexHullArea(std::move(points))) /
                             reference.Area(),
                         0.0,
                         100.0);
@@ -282,41 +448,12 @@ SpanCoverage CalcSpanCoverage(const std::vector<double>& fn_n,
   // hulls (as in CalcMaterialHullCoverage), and so is their extent; a
   // stroke's clamped hull depends on its points and the reference only,
   // so a refit looks up its older strokes' hulls in the memo.
-  std::map<int, std::vector<Point>> by;
-  for (std::size_t i = 0; i < fn_n.size(); ++i) {
-    if (!(std::isfinite(fn_n[i]) && std::isfinite(v_mm_s[i]))) continue;
-    ++out.samples;
-    by[stroke[i]].emplace_back(fn_n[i], v_mm_s[i]);
-  }
-  std::vector<Point> vertices;
-  for (auto& entry : by) {
-    // A named reference, not a structured binding (C++17 lambdas cannot
-    // capture bindings; the fuzz build uses clang).
-    std::vector<Point>& points = entry.second;
-    const std::shared_ptr<const MemoHull> hull = Memoized(
-        memo ? &memo->stroke_hulls : nullptr,
-        points.size(),
-        [&points, &reference] {
-          MemoKeyBuilder h(0x5370616e48756c6cULL);  // "SpanHull"
-          h.Add(reference.fn_min_n)
-              .Add(reference.fn_max_n)
-              .Add(reference.v_min_mm_s)
-              .Add(reference.v_max_mm_s);
-          h.Add(static_cast<std::uint64_t>(points.size()));
-          for (const Point& q : points) h.Add(q.first).Add(q.second);
-          return h.Key();
-        },
-        [&points, &reference] {
-          for (Point& q : points) q = ClampInto(reference, q.first, q.second);
-          MemoHull computed;
-          computed.vertices = CalcConvexHull(std::move(points));
-          computed.area = PolygonArea(computed.vertices);
-          return computed;
-        });
-    vertices.insert(
-        vertices.end(), hull->vertices.begin(), hull->vertices.end());
-  }
-  FinishSpanCoverage(std::move(vertices), reference, &out);
+  const StrokeHulls strokes =
+      CollectStrokeHulls(fn_n, v_mm_s, stroke, &reference, memo);
+  out.samples = strokes.total;
+  std::vector<std::size_t> ends;
+  std::vector<Point> vertices = strokes.Vertices(&ends);
+  FinishSpanCoverage(std::move(vertices), reference, &out, &ends);
   return out;
 }
 
@@ -378,47 +515,31 @@ MaterialHullCoverage CalcMaterialHullCoverage(const std::vector<double>& fn_n,
   // with stroke ids each stroke's few points are sorted once and the whole
   // set never is: on the bundled 20,000 slipping samples of a thin band
   // (constant load) 0.77 -> 0.47 ms.
-  std::vector<Point> all;
-  std::map<int, std::vector<Point>> by;
-  for (std::size_t i = 0; i < fn_n.size(); ++i) {
-    if (!(std::isfinite(fn_n[i]) && std::isfinite(v_mm_s[i]))) continue;
-    ++out.samples;
-    if (stroke.empty()) {
-      all.emplace_back(fn_n[i], v_mm_s[i]);
-    } else {
-      by[stroke[i]].emplace_back(fn_n[i], v_mm_s[i]);
-    }
-  }
   std::vector<StrokeHullCoverage> strokes;
-  strokes.reserve(by.size());
-  for (auto& entry : by) {
-    // A named reference, not a structured binding: C++17 lambdas cannot
-    // capture bindings (clang rejects it; the fuzz build uses clang).
-    std::vector<Point>& points = entry.second;
-    StrokeHullCoverage s;
-    s.stroke = entry.first;
-    s.coverage.samples = static_cast<int>(points.size());
-    // The hull reads the stroke's points only (their order included).
-    const std::shared_ptr<const MemoHull> hull = Memoized(
-        memo ? &memo->stroke_hulls : nullptr,
-        points.size(),
-        [&points] {
-          MemoKeyBuilder h(0x5374726f48756c6cULL);  // "StroHull"
-          h.Add(static_cast<std::uint64_t>(points.size()));
-          for (const Point& q : points) h.Add(q.first).Add(q.second);
-          return h.Key();
-        },
-        [&points] {
-          MemoHull computed;
-          computed.vertices = CalcConvexHull(std::move(points));
-          computed.area = PolygonArea(computed.vertices);
-          return computed;
-        });
-    s.coverage.hull_area = hull->area;
-    all.insert(all.end(), hull->vertices.begin(), hull->vertices.end());
-    strokes.push_back(s);
+  if (stroke.empty()) {
+    std::vector<Point> all;
+    for (std::size_t i = 0; i < fn_n.size(); ++i) {
+      if (!(std::isfinite(fn_n[i]) && std::isfinite(v_mm_s[i]))) continue;
+      all.emplace_back(fn_n[i], v_mm_s[i]);
+    }
+    out.samples = static_cast<int>(all.size());
+    out.hull = CalcConvexHull(std::move(all));
+  } else {
+    const StrokeHulls hulls =
+        CollectStrokeHulls(fn_n, v_mm_s, stroke, nullptr, memo);
+    out.samples = hulls.total;
+    strokes.reserve(hulls.ids.size());
+    for (std::size_t k = 0; k < hulls.ids.size(); ++k) {
+      StrokeHullCoverage s;
+      s.stroke = hulls.ids[k];
+      s.coverage.samples = hulls.samples[k];
+      s.coverage.hull_area = hulls.hulls[k]->area;
+      strokes.push_back(s);
+    }
+    std::vector<std::size_t> ends;
+    std::vector<Point> vertices = hulls.Vertices(&ends);
+    out.hull = UnionHull(std::move(vertices), std::move(ends));
   }
-  out.hull = CalcConvexHull(std::move(all));
   out.hull_area = PolygonArea(out.hull);
   std::size_t skip =
       strokes.size() > static_cast<std::size_t>(max_strokes)

@@ -186,7 +186,9 @@ TEST(SpanCoverage, NothingCoveredMeansWholePlanMissing) {
 
 // The per-stroke form (IdentifyMaterial's, with the refit's memo) against
 // the plain form on data wider than the strokes a robot makes: points far
-// outside the plan, non-finite ones, strokes on one line, single points.
+// outside the plan, non-finite ones, strokes on one line, single points,
+// convex arcs (every point a vertex of the stroke's hull, as a smooth
+// stroke's slipping samples often are) partly outside the plan.
 // The memo is reused across calls whose strokes overlap
 // (a bounded refit), so later calls are mostly memo hits.
 TEST(SpanCoverage, PerStrokeFormWithMemoEqualsThePlainForm) {
@@ -206,6 +208,11 @@ TEST(SpanCoverage, PerStrokeFormWithMemoEqualsThePlainForm) {
       if (kind == 3) v = d + 3.0 * fn;  // a sloped line
       if (kind == 4 && i % 17 == 5) fn = NAN;
       if (kind == 4 && i % 29 == 7) v = INFINITY;
+      if (kind >= 6) {  // an arc about (c, d), angles in order
+        const double a = 3.0 * i / n + (kind == 7 ? 2.0 : 0.0);
+        fn = c + 2.0 * std::cos(a);
+        v = d + 50.0 * std::sin(a);
+      }
       s.fn.push_back(fn);
       s.v.push_back(v);
     }
@@ -215,7 +222,7 @@ TEST(SpanCoverage, PerStrokeFormWithMemoEqualsThePlainForm) {
   std::vector<Stroke> window;  // the refit's strokes, oldest first
   int hits_expected = 0;
   for (int call = 0; call < 200; ++call) {
-    window.push_back(make_stroke(static_cast<int>(rng() % 6)));
+    window.push_back(make_stroke(static_cast<int>(rng() % 8)));
     if (window.size() > 12) window.erase(window.begin());
     std::vector<double> fn, v;
     std::vector<int> id;
@@ -381,7 +388,7 @@ TEST(MaterialHullCoverage, HullOfStrokeHullsEqualsHullOfAllPoints) {
     std::vector<int> stroke;
     const int strokes = 1 + static_cast<int>(60 * u(rng));
     for (int k = 0; k < strokes; ++k) {
-      const int kind = static_cast<int>(5 * u(rng));
+      const int kind = static_cast<int>(6 * u(rng));
       const int n = kind == 4 ? 1 : 2 + static_cast<int>(300 * u(rng));
       const double f0 = 0.5 + 4 * u(rng), v0 = 80 * u(rng);
       for (int i = 0; i < n; ++i) {
@@ -390,6 +397,10 @@ TEST(MaterialHullCoverage, HullOfStrokeHullsEqualsHullOfAllPoints) {
         if (kind == 1) f = f0 + u(rng), s = v0;           // horizontal line
         if (kind == 2) f = f0 + 0.5 * u(rng), s = 2 * f;  // diagonal line
         if (kind == 3) f = std::round(4 * u(rng)), s = std::round(8 * u(rng));
+        if (kind == 5) {  // a convex arc: every point a vertex
+          const double a = 2.5 * i / n + 3.0 * f0;  // f0: a phase per stroke
+          f = f0 + std::cos(a), s = v0 + 30 * std::sin(a);
+        }
         fn.push_back(f);
         v.push_back(s);
         stroke.push_back(kind == 3 ? static_cast<int>(3 * u(rng)) : k + 10);

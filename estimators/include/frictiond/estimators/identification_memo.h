@@ -209,7 +209,9 @@ std::shared_ptr<const Value> Memoized(MemoTable<Value>* table,
   return table->Insert(k, compute());
 }
 
-/// A stroke's hull (span_coverage.h): vertices and area.
+/// A stroke's hull (span_coverage.h): its vertices in lexicographic order
+/// (not around the hull: the union of hulls merges these sorted lists) and
+/// its area.
 struct MemoHull {
   std::vector<std::pair<double, double>> vertices;
   double area = 0.0;
