@@ -1,6 +1,7 @@
 #include "frictiond/estimators/span_coverage.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 #include <memory>
@@ -45,37 +46,42 @@ bool StrictlyInside(const std::vector<Edge>& edges, const Point& q) {
 // strictly inside it is no hull vertex. Returns that polygon's edges (none
 // below 64 points, where the test costs more than it saves, or when the
 // extremes span no area).
-std::vector<Edge> InteriorOctagon(const std::vector<Point>& p) {
-  if (p.size() < 64) return {};
-  // Directions in counter-clockwise order: min x, min x+y, min y,
-  // max x-y, max x, max x+y, max y, min x-y (as maxima of 8 keys).
-  auto keys = [](const Point& q, double* k) {
-    const double x = q.first, y = q.second;
-    k[0] = -x;
-    k[1] = -(x + y);
-    k[2] = -y;
-    k[3] = x - y;
-    k[4] = x;
-    k[5] = x + y;
-    k[6] = y;
-    k[7] = y - x;
-  };
-  std::size_t e[8] = {0, 0, 0, 0, 0, 0, 0, 0};
-  double best[8];
-  keys(p[0], best);
-  for (std::size_t i = 1; i < p.size(); ++i) {
-    double k[8];
-    keys(p[i], k);
-    for (int d = 0; d < 8; ++d) {
-      if (k[d] > best[d]) {
-        best[d] = k[d];
-        e[d] = i;
-      }
+// Directions in counter-clockwise order: min x, min x+y, min y,
+// max x-y, max x, max x+y, max y, min x-y (as maxima of 8 keys).
+void OctagonKeys(const Point& q, double* k) {
+  const double x = q.first, y = q.second;
+  k[0] = -x;
+  k[1] = -(x + y);
+  k[2] = -y;
+  k[3] = x - y;
+  k[4] = x;
+  k[5] = x + y;
+  k[6] = y;
+  k[7] = y - x;
+}
+
+// Folds `q` into the extremes found so far (of equal ones, the first
+// stays); `first`: q is the first point.
+void FoldExtreme(const Point& q,
+                 double* best,
+                 std::array<Point, 8>* extremes,
+                 bool first) {
+  double k[8];
+  OctagonKeys(q, k);
+  for (int d = 0; d < 8; ++d) {
+    if (first || k[d] > best[d]) {
+      best[d] = k[d];
+      (*extremes)[d] = q;
     }
   }
+}
+
+// The convex polygon of the extremes, as edges (none when it spans no
+// area).
+std::vector<Edge> OctagonEdges(const std::array<Point, 8>& e) {
   std::vector<Point> poly;
   for (int d = 0; d < 8; ++d) {
-    if (poly.empty() || poly.back() != p[e[d]]) poly.push_back(p[e[d]]);
+    if (poly.empty() || poly.back() != e[d]) poly.push_back(e[d]);
   }
   while (poly.size() > 1 && poly.back() == poly.front()) poly.pop_back();
   if (poly.size() < 3) return {};
@@ -87,6 +93,15 @@ std::vector<Edge> InteriorOctagon(const std::vector<Point>& p) {
         {a.first, a.second, b.first - a.first, b.second - a.second});
   }
   return edges;
+}
+
+std::vector<Edge> InteriorOctagon(const std::vector<Point>& p) {
+  if (p.size() < 64) return {};
+  std::array<Point, 8> e;
+  double best[8];
+  for (std::size_t i = 0; i < p.size(); ++i)
+    FoldExtreme(p[i], best, &e, i == 0);
+  return OctagonEdges(e);
 }
 
 // Drops the points strictly inside InteriorOctagon (no hull vertices):
@@ -196,32 +211,78 @@ Point ClampInto(const SpanRect& r, double fn, double v) {
           std::min(std::max(v, r.v_min_mm_s), r.v_max_mm_s)};
 }
 
-// The hull of the union of convex polygons given by their vertices in
-// lexicographic order (MemoHull::vertices): the strict vertices of the hull
-// of a union are vertices of the parts' hulls, so it is the hull of the
-// parts' vertices, and merging the sorted lists replaces the sort (a
-// stroke's slipping samples often trace a convex arc, every one a vertex).
-// Equal to CalcConvexHull of the concatenated vertices.
-// `a` holds the parts' vertex lists one after the other, `ends` the end of
-// each.
-std::vector<Point> UnionHull(std::vector<Point> a,
-                             std::vector<std::size_t> ends) {
-  std::vector<Point> segment;
-  if (AxisSegmentHull(a, &segment)) return segment;
-  // Drop the points inside the octagon of the extremes of all (most of
-  // the parts' vertices, for strokes spread over the plane); each run stays
-  // sorted.
-  const std::vector<Edge> edges = InteriorOctagon(a);
-  if (!edges.empty()) {
-    std::size_t kept = 0, begin = 0;
-    for (std::size_t& end : ends) {
-      for (std::size_t i = begin; i < end; ++i) {
-        if (!StrictlyInside(edges, a[i])) a[kept++] = a[i];
-      }
-      begin = end;
-      end = kept;
+// The finite samples grouped by stroke id (ascending) and each stroke's
+// hull, looked up in the memo's stroke_hulls when it holds it. With
+// `clamp`, the points are clamped into it first (CalcSpanCoverage's
+// hulls, keyed apart from CalcMaterialHullCoverage's).
+struct StrokeHulls {
+  std::vector<int> ids;
+  std::vector<int> samples;  // per stroke
+  std::vector<std::shared_ptr<const MemoHull>> hulls;
+  int total = 0;  // finite samples
+};
+
+// The hull of the union of the strokes' hulls: the strict vertices of the
+// hull of a union are vertices of the parts' hulls, so it is the hull of
+// the parts' vertices. Each part's vertices are in lexicographic order
+// (MemoHull), so merging them replaces the sort, and each part's
+// extremes and bounding box give the octagon that drops interior points
+// (a part whose box is inside it is skipped whole) without a pass over
+// every vertex. A smooth stroke's slipping samples often trace a convex
+// arc, every one a vertex of its hull. Equal to CalcConvexHull of all the
+// parts' vertices.
+std::vector<Point> UnionHull(const StrokeHulls& parts) {
+  const auto& hulls = parts.hulls;
+  if (hulls.empty()) return {};
+  std::size_t total = 0;
+  for (const auto& h : hulls) total += h->vertices.size();
+  // All on one vertical or horizontal line: AxisSegmentHull's answer.
+  {
+    bool same_x = true, same_y = true;
+    const double x0 = hulls[0]->x_lo, y0 = hulls[0]->y_lo;
+    double x_lo = x0, x_hi = hulls[0]->x_hi, y_lo = y0, y_hi = hulls[0]->y_hi;
+    for (const auto& h : hulls) {
+      same_x = same_x && h->x_lo == x0 && h->x_hi == x0;
+      same_y = same_y && h->y_lo == y0 && h->y_hi == y0;
+      x_lo = std::min(x_lo, h->x_lo);
+      x_hi = std::max(x_hi, h->x_hi);
+      y_lo = std::min(y_lo, h->y_lo);
+      y_hi = std::max(y_hi, h->y_hi);
     }
-    a.resize(kept);
+    if (same_x || same_y) {
+      const Point lo = same_x ? Point{x0, y_lo} : Point{x_lo, y0};
+      const Point hi = same_x ? Point{x0, y_hi} : Point{x_hi, y0};
+      if (lo == hi) return {lo};
+      return {lo, hi};
+    }
+  }
+  std::vector<Edge> edges;
+  if (total >= 64) {
+    std::array<Point, 8> e;
+    double best[8];
+    bool first = true;
+    for (const auto& h : hulls) {
+      for (const Point& q : h->extremes) {
+        FoldExtreme(q, best, &e, first);
+        first = false;
+      }
+    }
+    edges = OctagonEdges(e);
+  }
+  // The survivors, one sorted run per part.
+  std::vector<Point> a;
+  std::vector<std::size_t> ends;
+  a.reserve(total);
+  for (const auto& h : hulls) {
+    if (!edges.empty() && StrictlyInside(edges, {h->x_lo, h->y_lo}) &&
+        StrictlyInside(edges, {h->x_hi, h->y_lo}) &&
+        StrictlyInside(edges, {h->x_lo, h->y_hi}) &&
+        StrictlyInside(edges, {h->x_hi, h->y_hi}))
+      continue;
+    for (const Point& q : h->vertices) {
+      if (edges.empty() || !StrictlyInside(edges, q)) a.push_back(q);
+    }
+    ends.push_back(a.size());
   }
   // Bottom-up merge of neighbouring runs.
   std::vector<Point> b(a.size());
@@ -245,27 +306,62 @@ std::vector<Point> UnionHull(std::vector<Point> a,
   return ChainHull(std::move(a));
 }
 
-// The finite samples grouped by stroke id (ascending) and each stroke's
-// hull, looked up in the memo's stroke_hulls when it holds it. With
-// `clamp`, the points are clamped into it first (CalcSpanCoverage's
-// hulls, keyed apart from CalcMaterialHullCoverage's).
-struct StrokeHulls {
-  std::vector<int> ids;
-  std::vector<int> samples;  // per stroke
-  std::vector<std::shared_ptr<const MemoHull>> hulls;
-  int total = 0;  // finite samples
-
-  // Every hull's vertices, one hull after the other; *ends: where each
-  // hull's end.
-  std::vector<Point> Vertices(std::vector<std::size_t>* ends) const {
-    std::vector<Point> all;
-    for (const auto& hull : hulls) {
-      all.insert(all.end(), hull->vertices.begin(), hull->vertices.end());
-      ends->push_back(all.size());
-    }
-    return all;
+// One stroke's hull from its points (clamped first with `clamp`).
+MemoHull CalcStrokeHull(std::vector<Point> points, const SpanRect* clamp) {
+  if (clamp) {
+    for (Point& q : points) q = ClampInto(*clamp, q.first, q.second);
   }
-};
+  MemoHull h;
+  h.vertices = CalcConvexHull(std::move(points));
+  h.area = PolygonArea(h.vertices);
+  std::sort(h.vertices.begin(), h.vertices.end());
+  const std::vector<Point>& v = h.vertices;  // not empty: >= 1 point
+  double best[8];
+  for (std::size_t i = 0; i < v.size(); ++i)
+    FoldExtreme(v[i], best, &h.extremes, i == 0);
+  h.x_lo = v.front().first;
+  h.x_hi = v.back().first;
+  h.y_lo = h.y_hi = v[0].second;
+  for (const Point& q : v) {
+    h.y_lo = std::min(h.y_lo, q.second);
+    h.y_hi = std::max(h.y_hi, q.second);
+  }
+  return h;
+}
+
+// One stroke's hull, looked up in the memo (keyed by every input the hull
+// reads: the points in order and the clamp rectangle). `point(i)`, i <
+// n, is the stroke's i-th point.
+template <typename PointAt>
+std::shared_ptr<const MemoHull> StrokeHull(IdentificationMemo* memo,
+                                           const SpanRect* clamp,
+                                           std::size_t n,
+                                           const PointAt& point) {
+  return Memoized(
+      memo ? &memo->stroke_hulls : nullptr,
+      n,
+      [&] {
+        MemoKeyBuilder h(clamp ? 0x5370616e48756c6cULL    // "SpanHull"
+                               : 0x5374726f48756c6cULL);  // "StroHull"
+        if (clamp) {
+          h.Add(clamp->fn_min_n)
+              .Add(clamp->fn_max_n)
+              .Add(clamp->v_min_mm_s)
+              .Add(clamp->v_max_mm_s);
+        }
+        h.Add(static_cast<std::uint64_t>(n));
+        for (std::size_t i = 0; i < n; ++i) {
+          const Point q = point(i);
+          h.Add(q.first).Add(q.second);
+        }
+        return h.Key();
+      },
+      [&] {
+        std::vector<Point> points(n);
+        for (std::size_t i = 0; i < n; ++i) points[i] = point(i);
+        return CalcStrokeHull(std::move(points), clamp);
+      });
+}
 
 StrokeHulls CollectStrokeHulls(const std::vector<double>& fn_n,
                                const std::vector<double>& v_mm_s,
@@ -273,10 +369,31 @@ StrokeHulls CollectStrokeHulls(const std::vector<double>& fn_n,
                                const SpanRect* clamp,
                                IdentificationMemo* memo) {
   StrokeHulls out;
+  const std::size_t n = fn_n.size();
+  // A refit's samples: every point finite and the ids never decreasing,
+  // so each stroke is one range of the columns, read in place.
+  bool ranges = true;
+  for (std::size_t i = 0; i < n && ranges; ++i) {
+    ranges = std::isfinite(fn_n[i]) && std::isfinite(v_mm_s[i]) &&
+             (i == 0 || stroke[i] >= stroke[i - 1]);
+  }
+  if (ranges) {
+    for (std::size_t b = 0, e; b < n; b = e) {
+      for (e = b + 1; e < n && stroke[e] == stroke[b];) ++e;
+      out.ids.push_back(stroke[b]);
+      out.samples.push_back(static_cast<int>(e - b));
+      out.hulls.push_back(StrokeHull(memo, clamp, e - b, [&](std::size_t i) {
+        return Point{fn_n[b + i], v_mm_s[b + i]};
+      }));
+    }
+    out.total = static_cast<int>(n);
+    return out;
+  }
+  // Otherwise grouped by id (ascending), the finite points only.
   std::map<int, std::vector<Point>> by;
   std::vector<Point>* last = nullptr;  // consecutive samples share a stroke
   int last_id = 0;
-  for (std::size_t i = 0; i < fn_n.size(); ++i) {
+  for (std::size_t i = 0; i < n; ++i) {
     if (!(std::isfinite(fn_n[i]) && std::isfinite(v_mm_s[i]))) continue;
     ++out.total;
     if (last == nullptr || stroke[i] != last_id) {
@@ -285,87 +402,59 @@ StrokeHulls CollectStrokeHulls(const std::vector<double>& fn_n,
     }
     last->emplace_back(fn_n[i], v_mm_s[i]);
   }
-  for (auto& entry : by) {
-    // A named reference, not a structured binding: C++17 lambdas cannot
-    // capture bindings (clang rejects it; the fuzz build uses clang).
-    std::vector<Point>& points = entry.second;
+  for (const auto& entry : by) {
+    const std::vector<Point>& points = entry.second;
     out.ids.push_back(entry.first);
     out.samples.push_back(static_cast<int>(points.size()));
-    // The hull reads the stroke's points only (their order included) and
-    // the clamp rectangle.
-    out.hulls.push_back(Memoized(
-        memo ? &memo->stroke_hulls : nullptr,
-        points.size(),
-        [&points, clamp] {
-          MemoKeyBuilder h(clamp ? 0x5370616e48756c6cULL    // "SpanHull"
-                                 : 0x5374726f48756c6cULL);  // "StroHull"
-          if (clamp) {
-            h.Add(clamp->fn_min_n)
-                .Add(clamp->fn_max_n)
-                .Add(clamp->v_min_mm_s)
-                .Add(clamp->v_max_mm_s);
-          }
-          h.Add(static_cast<std::uint64_t>(points.size()));
-          for (const Point& q : points) h.Add(q.first).Add(q.second);
-          return h.Key();
-        },
-        [&points, clamp] {
-          if (clamp) {
-            for (Point& q : points) q = ClampInto(*clamp, q.first, q.second);
-          }
-          MemoHull computed;
-          computed.vertices = CalcConvexHull(std::move(points));
-          computed.area = PolygonArea(computed.vertices);
-          std::sort(computed.vertices.begin(), computed.vertices.end());
-          return computed;
+    out.hulls.push_back(
+        StrokeHull(memo, clamp, points.size(), [&points](std::size_t i) {
+          return points[i];
         }));
   }
   return out;
 }
 
-// The covered extent, span and missing region of `points` (clamped and
-// finite, or the hull vertices of such point sets: both have the same
-// extent and hull), written to `out` (samples and missing set already).
-// With `ends`, `points` are sorted runs of hull vertices (UnionHull).
-void FinishSpanCoverage(std::vector<Point> points,
-                        const SpanRect& reference,
-                        SpanCoverage* result,
-                        std::vector<std::size_t>* ends = nullptr) {
-  SpanCoverage& out = *result;
-  if (points.empty()) return;
-  // Covered extent, with two points per step (a single running min/max
-  // would wait for each comparison before the next).
-  auto extend = [](SpanRect* r, double fn, double v) {
-    r->fn_min_n = std::min(r->fn_min_n, fn);
-    r->fn_max_n = std::max(r->fn_max_n, fn);
-    r->v_min_mm_s = std::min(r->v_min_mm_s, v);
-    r->v_max_mm_s = std::max(r->v_max_mm_s, v);
-  };
-  SpanRect& c = out.covered;
-  SpanRect c2;
+void Extend(SpanRect* r, double fn, double v) {
+  r->fn_min_n = std::min(r->fn_min_n, fn);
+  r->fn_max_n = std::max(r->fn_max_n, fn);
+  r->v_min_mm_s = std::min(r->v_min_mm_s, v);
+  r->v_max_mm_s = std::max(r->v_max_mm_s, v);
+}
+
+// The extent of `points` (not empty), two points per step (a single
+// running min/max would wait for each comparison before the next).
+SpanRect ExtentOf(const std::vector<Point>& points) {
+  SpanRect c, c2;
   c = c2 = {
       points[0].first, points[0].first, points[0].second, points[0].second};
   std::size_t i = 0;
   for (; i + 2 <= points.size(); i += 2) {
-    extend(&c, points[i].first, points[i].second);
-    extend(&c2, points[i + 1].first, points[i + 1].second);
+    Extend(&c, points[i].first, points[i].second);
+    Extend(&c2, points[i + 1].first, points[i + 1].second);
   }
-  if (i < points.size()) extend(&c, points[i].first, points[i].second);
-  extend(&c, c2.fn_min_n, c2.v_min_mm_s);
-  extend(&c, c2.fn_max_n, c2.v_max_mm_s);
+  if (i < points.size()) Extend(&c, points[i].first, points[i].second);
+  Extend(&c, c2.fn_min_n, c2.v_min_mm_s);
+  Extend(&c, c2.fn_max_n, c2.v_max_mm_s);
+  return c;
+}
+
+// The span and missing region from the covered extent (out->covered, of
+// clamped finite points; out->samples and out->missing set already) and
+// hull_area(), the area of those points' hull, asked only when the extent
+// has an area.
+template <typename HullArea>
+void FinishSpanCoverage(const SpanRect& reference,
+                        SpanCoverage* result,
+                        HullArea hull_area) {
+  SpanCoverage& out = *result;
+  const SpanRect& c = out.covered;
   // No extent on an axis (e.g. a constant load clamped to the reference):
   // the points lie on one line and the hull has no area.
   const bool flat =
       !(c.fn_max_n > c.fn_min_n) || !(c.v_max_mm_s > c.v_min_mm_s);
   out.span_pct =
       flat ? 0.0
-           : std::clamp(100.0 *
-                            (ends ? PolygonArea(UnionHull(std::move(points),
-                                                          std::move(*ends)))
-                                  : CalcConvexHullArea(std::move(points))) /
-                            reference.Area(),
-                        0.0,
-                        100.0);
+           : std::clamp(100.0 * hull_area() / reference.Area(), 0.0, 100.0);
   // Missing region: per axis, the larger uncovered end when the covered
   // extent is below half of the reference range.
   auto missing_axis = [](double lo,
@@ -427,7 +516,11 @@ SpanCoverage CalcSpanCoverage(const std::vector<double>& fn_n,
   }
   points.resize(kept);
   out.samples = static_cast<int>(points.size());
-  FinishSpanCoverage(std::move(points), reference, &out);
+  if (points.empty()) return out;
+  out.covered = ExtentOf(points);
+  FinishSpanCoverage(reference, &out, [&points] {
+    return CalcConvexHullArea(std::move(points));
+  });
   return out;
 }
 
@@ -451,9 +544,18 @@ SpanCoverage CalcSpanCoverage(const std::vector<double>& fn_n,
   const StrokeHulls strokes =
       CollectStrokeHulls(fn_n, v_mm_s, stroke, &reference, memo);
   out.samples = strokes.total;
-  std::vector<std::size_t> ends;
-  std::vector<Point> vertices = strokes.Vertices(&ends);
-  FinishSpanCoverage(std::move(vertices), reference, &out, &ends);
+  if (strokes.hulls.empty()) return out;
+  SpanRect& c = out.covered;  // the union of the hulls' boxes
+  c = {strokes.hulls[0]->x_lo,
+       strokes.hulls[0]->x_hi,
+       strokes.hulls[0]->y_lo,
+       strokes.hulls[0]->y_hi};
+  for (const auto& h : strokes.hulls) {
+    Extend(&c, h->x_lo, h->y_lo);
+    Extend(&c, h->x_hi, h->y_hi);
+  }
+  FinishSpanCoverage(
+      reference, &out, [&strokes] { return PolygonArea(UnionHull(strokes)); });
   return out;
 }
 
@@ -536,9 +638,7 @@ MaterialHullCoverage CalcMaterialHullCoverage(const std::vector<double>& fn_n,
       s.coverage.hull_area = hulls.hulls[k]->area;
       strokes.push_back(s);
     }
-    std::vector<std::size_t> ends;
-    std::vector<Point> vertices = hulls.Vertices(&ends);
-    out.hull = UnionHull(std::move(vertices), std::move(ends));
+    out.hull = UnionHull(hulls);
   }
   out.hull_area = PolygonArea(out.hull);
   std::size_t skip =
