@@ -220,7 +220,31 @@ struct StrokeHulls {
   std::vector<int> samples;  // per stroke
   std::vector<std::shared_ptr<const MemoHull>> hulls;
   int total = 0;  // finite samples
+
+  // Two opposite corners of each hull's bounding box: the same extent as
+  // all the vertices, and on one axis line exactly when they are.
+  std::vector<Point> BoxCorners() const;
 };
+
+// A hull's bounding box: its extremes in -x, x, -y and y (four of the
+// octagon's directions).
+SpanRect BoxOf(const MemoHull& h) {
+  return {h.extremes[0].first,
+          h.extremes[4].first,
+          h.extremes[2].second,
+          h.extremes[6].second};
+}
+
+std::vector<Point> StrokeHulls::BoxCorners() const {
+  std::vector<Point> corners;
+  corners.reserve(2 * hulls.size());
+  for (const auto& h : hulls) {
+    const SpanRect box = BoxOf(*h);
+    corners.emplace_back(box.fn_min_n, box.v_min_mm_s);
+    corners.emplace_back(box.fn_max_n, box.v_max_mm_s);
+  }
+  return corners;
+}
 
 // The hull of the union of the strokes' hulls: the strict vertices of the
 // hull of a union are vertices of the parts' hulls, so it is the hull of
@@ -236,26 +260,10 @@ std::vector<Point> UnionHull(const StrokeHulls& parts) {
   if (hulls.empty()) return {};
   std::size_t total = 0;
   for (const auto& h : hulls) total += h->vertices.size();
-  // All on one vertical or horizontal line: AxisSegmentHull's answer.
-  {
-    bool same_x = true, same_y = true;
-    const double x0 = hulls[0]->x_lo, y0 = hulls[0]->y_lo;
-    double x_lo = x0, x_hi = hulls[0]->x_hi, y_lo = y0, y_hi = hulls[0]->y_hi;
-    for (const auto& h : hulls) {
-      same_x = same_x && h->x_lo == x0 && h->x_hi == x0;
-      same_y = same_y && h->y_lo == y0 && h->y_hi == y0;
-      x_lo = std::min(x_lo, h->x_lo);
-      x_hi = std::max(x_hi, h->x_hi);
-      y_lo = std::min(y_lo, h->y_lo);
-      y_hi = std::max(y_hi, h->y_hi);
-    }
-    if (same_x || same_y) {
-      const Point lo = same_x ? Point{x0, y_lo} : Point{x_lo, y0};
-      const Point hi = same_x ? Point{x0, y_hi} : Point{x_hi, y0};
-      if (lo == hi) return {lo};
-      return {lo, hi};
-    }
-  }
+  // All on one vertical or horizontal line: the boxes' corners give
+  // AxisSegmentHull's answer for all the vertices.
+  std::vector<Point> segment;
+  if (AxisSegmentHull(parts.BoxCorners(), &segment)) return segment;
   std::vector<Edge> edges;
   if (total >= 64) {
     std::array<Point, 8> e;
@@ -274,10 +282,12 @@ std::vector<Point> UnionHull(const StrokeHulls& parts) {
   std::vector<std::size_t> ends;
   a.reserve(total);
   for (const auto& h : hulls) {
-    if (!edges.empty() && StrictlyInside(edges, {h->x_lo, h->y_lo}) &&
-        StrictlyInside(edges, {h->x_hi, h->y_lo}) &&
-        StrictlyInside(edges, {h->x_lo, h->y_hi}) &&
-        StrictlyInside(edges, {h->x_hi, h->y_hi}))
+    const SpanRect box = BoxOf(*h);
+    if (!edges.empty() &&
+        StrictlyInside(edges, {box.fn_min_n, box.v_min_mm_s}) &&
+        StrictlyInside(edges, {box.fn_max_n, box.v_min_mm_s}) &&
+        StrictlyInside(edges, {box.fn_min_n, box.v_max_mm_s}) &&
+        StrictlyInside(edges, {box.fn_max_n, box.v_max_mm_s}))
       continue;
     for (const Point& q : h->vertices) {
       if (edges.empty() || !StrictlyInside(edges, q)) a.push_back(q);
@@ -319,13 +329,6 @@ MemoHull CalcStrokeHull(std::vector<Point> points, const SpanRect* clamp) {
   double best[8];
   for (std::size_t i = 0; i < v.size(); ++i)
     FoldExtreme(v[i], best, &h.extremes, i == 0);
-  h.x_lo = v.front().first;
-  h.x_hi = v.back().first;
-  h.y_lo = h.y_hi = v[0].second;
-  for (const Point& q : v) {
-    h.y_lo = std::min(h.y_lo, q.second);
-    h.y_hi = std::max(h.y_hi, q.second);
-  }
   return h;
 }
 
@@ -545,15 +548,7 @@ SpanCoverage CalcSpanCoverage(const std::vector<double>& fn_n,
       CollectStrokeHulls(fn_n, v_mm_s, stroke, &reference, memo);
   out.samples = strokes.total;
   if (strokes.hulls.empty()) return out;
-  SpanRect& c = out.covered;  // the union of the hulls' boxes
-  c = {strokes.hulls[0]->x_lo,
-       strokes.hulls[0]->x_hi,
-       strokes.hulls[0]->y_lo,
-       strokes.hulls[0]->y_hi};
-  for (const auto& h : strokes.hulls) {
-    Extend(&c, h->x_lo, h->y_lo);
-    Extend(&c, h->x_hi, h->y_hi);
-  }
+  out.covered = ExtentOf(strokes.BoxCorners());
   FinishSpanCoverage(
       reference, &out, [&strokes] { return PolygonArea(UnionHull(strokes)); });
   return out;

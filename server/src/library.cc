@@ -651,8 +651,7 @@ FrictionLibrary::ModelSetFit FrictionLibrary::FitModelSet(
   MaterialIdentificationOptions id_options;
   id_options.fit = fit_options;
   id_options.memo = memo;  // the pair's: its older strokes' steps kept
-  if (conditional_start && conditional_start->valid)
-    id_options.conditional_start = conditional_start;
+  id_options.conditional_start = conditional_start;
   if (slot.split()) {
     id_options.post = [this](std::function<void()> task) {
       fit_workers_->PostShare(std::move(task));

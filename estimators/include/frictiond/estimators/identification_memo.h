@@ -212,13 +212,13 @@ std::shared_ptr<const Value> Memoized(MemoTable<Value>* table,
 
 /// A stroke's hull (span_coverage.h): its vertices in lexicographic order
 /// (not around the hull: the union of hulls merges these sorted lists),
-/// its area, its vertices extreme in the 8 directions of an octagon
-/// (-x, -(x+y), -y, x-y, x, x+y, y, y-x) and its bounding box.
+/// its area and its vertices extreme in the 8 directions of an octagon
+/// (-x, -(x+y), -y, x-y, x, x+y, y, y-x; of equal ones, the first),
+/// which also give its bounding box.
 struct MemoHull {
   std::vector<std::pair<double, double>> vertices;
   double area = 0.0;
   std::array<std::pair<double, double>, 8> extremes{};
-  double x_lo = 0.0, x_hi = 0.0, y_lo = 0.0, y_hi = 0.0;
 };
 
 /// The memo of IdentifyMaterial. Not copyable or movable.
